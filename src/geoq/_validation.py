@@ -1,0 +1,89 @@
+"""Input validation at the public boundary.
+
+Every public entry point converts its inputs with these helpers, so that a bad
+input fails early with a message that says what was expected, and everything
+downstream can assume C-contiguous, finite float64 arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geoq._typing import ArrayLike, FloatArray
+
+__all__ = [
+    "as_float_matrix",
+    "as_float_vector",
+    "as_float_point",
+    "check_positive",
+    "check_nonnegative",
+]
+
+
+def _check_finite(arr: FloatArray, name: str) -> None:
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f"{name} contains {bad} non-finite value(s) (NaN or inf); remove them")
+
+
+def _to_float(value: ArrayLike, name: str) -> FloatArray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    return arr
+
+
+def as_float_matrix(X: ArrayLike, name: str = "X", n_cols: int | None = None) -> FloatArray:
+    """Return ``X`` as a finite, C-contiguous float64 array of shape ``(n, d)``.
+
+    A 1-D input is *not* silently reshaped: ambiguity between one point and
+    many scalar points is an error.
+    """
+    arr = _to_float(X, name)
+    if arr.ndim != 2:
+        expected = f"(n, {n_cols})" if n_cols is not None else "(n, d)"
+        raise ValueError(f"{name} has shape {arr.shape}; expected a 2-D array {expected}")
+    if n_cols is not None and arr.shape[1] != n_cols:
+        raise ValueError(f"{name} has shape {arr.shape}; expected (n, {n_cols})")
+    _check_finite(arr, name)
+    return np.ascontiguousarray(arr)
+
+
+def as_float_vector(y: ArrayLike, name: str = "y", length: int | None = None) -> FloatArray:
+    """Return ``y`` as a finite float64 array of shape ``(length,)``."""
+    arr = _to_float(y, name)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} has shape {arr.shape}; expected a 1-D array")
+    if length is not None and arr.shape[0] != length:
+        raise ValueError(f"{name} has {arr.shape[0]} entries; expected {length}")
+    _check_finite(arr, name)
+    return np.ascontiguousarray(arr)
+
+
+def as_float_point(x: ArrayLike, name: str = "x", dim: int | None = None) -> FloatArray:
+    """Return a single input point as a finite float64 array of shape ``(dim,)``."""
+    arr = _to_float(x, name)
+    if arr.ndim != 1:
+        expected = f"({dim},)" if dim is not None else "(d,)"
+        raise ValueError(f"{name} has shape {arr.shape}; expected one point of shape {expected}")
+    if dim is not None and arr.shape[0] != dim:
+        raise ValueError(f"{name} has shape {arr.shape}; expected ({dim},)")
+    _check_finite(arr, name)
+    return arr
+
+
+def check_positive(value: float, name: str) -> float:
+    """Return ``float(value)`` if it is finite and > 0, else raise ``ValueError``."""
+    v = float(value)
+    if not np.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+def check_nonnegative(value: float, name: str) -> float:
+    """Return ``float(value)`` if it is finite and >= 0, else raise ``ValueError``."""
+    v = float(value)
+    if not np.isfinite(v) or v < 0.0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v

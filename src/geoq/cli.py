@@ -1,0 +1,256 @@
+"""The ``geoq`` command line: a thin typer layer over library calls.
+
+Commands
+--------
+``geoq reproduce --out DIR --scale quick|paper [--jobs N] [--backend loky|dask]
+[--scheduler ADDRESS] [--seed ROOT_SEED] [--no-progress]``
+    Reproduce every figure of the paper into ``DIR`` by calling
+    :func:`geoq.experiments.reproduce.reproduce`; everything it does can be
+    done from Python with that function.
+``geoq version``
+    Print the package version (also ``geoq --version``).
+``geoq info``
+    Print the registered Gymnasium environments and the kernels.
+
+Exit codes: 0 success; 2 usage error (bad option value or combination, from
+typer/click); 1 failure while running, reported as one line on stderr;
+130 interrupted (finished sweep cells are kept: rerun the same command to
+resume).
+
+Heavy imports (numpy, the experiments) happen inside the commands, so that
+``geoq --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import enum
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+__all__ = ["Backend", "Scale", "app", "main"]
+
+
+class Scale(enum.StrEnum):
+    """Size of a reproduction run."""
+
+    quick = "quick"
+    paper = "paper"
+
+
+class Backend(enum.StrEnum):
+    """Where sweep cells run."""
+
+    loky = "loky"
+    dask = "dask"
+
+
+app = typer.Typer(
+    name="geoq",
+    help=(
+        "Action-value functions learned by sparse online Gaussian processes with geodesic "
+        "(shortest-path) kernels on the MDP-induced graph (ESANN 2012), and the command that "
+        "reproduces the paper's figures."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help texts are plain text: "geoq[dask]" is not markup
+)
+
+
+def _version() -> str:
+    from geoq import __version__
+
+    return __version__
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"geoq {_version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            help="Print the package version and exit.",
+            callback=_version_callback,
+            is_eager=True,
+        ),
+    ] = False,
+) -> None:
+    """Action-value functions with geodesic GP kernels; run a command with --help for details."""
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or "(no message)"
+    return f"{type(exc).__name__}: {text}"
+
+
+@app.command()
+def reproduce(
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            help=(
+                "Output directory (created if missing). Receives each figure as PNG, its data as "
+                "tidy CSV (fig3.csv: kernel, max_bv, seed, mse, normalized_variance, n_bv, ...), "
+                "config.json and REPORT.md. Finished sweep cells are stored under it, so rerunning "
+                "with the same --out resumes an interrupted run and skips finished cells."
+            ),
+            file_okay=False,
+            dir_okay=True,
+            resolve_path=False,
+        ),
+    ],
+    scale: Annotated[
+        Scale,
+        typer.Option(
+            "--scale",
+            help=(
+                "quick: a small protocol that finishes in minutes on 2 cores (make demo). "
+                "paper: the full protocol of the paper (>= 10 seeds, ~10 basis budgets "
+                "between 5 and 200); hours on a laptop, use --jobs or a Dask cluster."
+            ),
+            case_sensitive=False,
+        ),
+    ] = Scale.quick,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            "--jobs",
+            "-j",
+            min=1,
+            help=(
+                "Worker processes for the sweeps (>= 1). With the loky backend: local joblib "
+                "workers, each limited to one BLAS/OpenMP/numba thread, so use at most the number "
+                "of cores. With --backend dask and no --scheduler: the number of workers of the "
+                "local Dask cluster (1 = one per core). Ignored with --scheduler."
+            ),
+        ),
+    ] = 1,
+    backend: Annotated[
+        Backend,
+        typer.Option(
+            "--backend",
+            help=(
+                "loky: run the sweep cells in local joblib/loky processes. "
+                "dask: run them on a Dask distributed cluster (the one at --scheduler, or a local "
+                "one started for the run); needs 'pip install geoq[dask]'. Results are identical "
+                "whichever backend and number of jobs."
+            ),
+            case_sensitive=False,
+        ),
+    ] = Backend.loky,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            "--scheduler",
+            metavar="ADDRESS",
+            help=(
+                "Address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (only with "
+                "--backend dask). Its workers need geoq installed; set NUMBA_NUM_THREADS=1 in "
+                "their environment."
+            ),
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(
+            "--seed",
+            metavar="ROOT_SEED",
+            min=0,
+            help=(
+                "Root seed: every random stream of the run is spawned from "
+                "numpy.random.SeedSequence(ROOT_SEED), so the same seed gives identical CSVs. "
+                "Default: the preset's root seed (recorded in config.json)."
+            ),
+        ),
+    ] = None,
+    progress: Annotated[
+        bool,
+        typer.Option(
+            "--progress/--no-progress",
+            help="Show progress bars over sweep cells on stderr.",
+        ),
+    ] = True,
+) -> None:
+    """Reproduce every figure of the paper (Fig. 1-3), their data and a REPORT.md into --out."""
+    if scheduler is not None and backend is not Backend.dask:
+        raise typer.BadParameter(
+            "a scheduler address needs --backend dask", param_hint="'--scheduler'"
+        )
+    if scheduler is not None and not scheduler.strip():
+        raise typer.BadParameter("the scheduler address is empty", param_hint="'--scheduler'")
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+
+    kwargs: dict[str, Any] = {
+        "out": out,
+        "scale": scale.value,
+        "jobs": jobs,
+        "backend": backend.value,
+        "scheduler": scheduler,
+        "progress": progress,
+    }
+    if seed is not None:
+        kwargs["root_seed"] = seed
+    try:
+        from geoq.experiments.reproduce import reproduce as run_reproduce
+
+        run_reproduce(**kwargs)
+    except KeyboardInterrupt:
+        typer.echo(
+            "geoq reproduce: interrupted; finished cells are kept, rerun the same command to "
+            "resume",
+            err=True,
+        )
+        raise typer.Exit(130) from None
+    except Exception as exc:
+        typer.echo(f"geoq reproduce: error: {_one_line(exc)}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo(f"geoq reproduce: done; results in {out}")
+
+
+@app.command()
+def version() -> None:
+    """Print the package version."""
+    typer.echo(_version())
+
+
+@app.command()
+def info() -> None:
+    """Print the registered Gymnasium environments and the available kernels."""
+    import inspect
+
+    import gymnasium
+
+    import geoq
+    import geoq.kernels as kernels
+
+    typer.echo(f"geoq {geoq.__version__}")
+    env_ids = sorted(k for k in gymnasium.registry if k.startswith("geoq/"))
+    typer.echo("environments:")
+    for env_id in env_ids or ["(none registered)"]:
+        typer.echo(f"  {env_id}")
+    typer.echo("kernels:")
+    for name in sorted(getattr(kernels, "__all__", [])):
+        obj = getattr(kernels, name, None)
+        if inspect.isclass(obj) and issubclass(obj, kernels.Kernel) and not inspect.isabstract(obj):
+            doc = (inspect.getdoc(obj) or "").splitlines()
+            typer.echo(f"  {name}: {doc[0] if doc else ''}".rstrip(": "))
+
+
+def main() -> None:
+    """Entry point of the ``geoq`` console script."""
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,100 @@
+"""Settings of the paper reproduction (§5), as frozen dataclasses (CleanRL style).
+
+Two presets: ``quick`` (``make demo``: minutes on 2 cores) and ``paper`` (the
+full protocol: >= 10 seeds, ~10 budgets between 5 and 200). Every result file
+carries the configuration it came from (``config.json``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any, Literal
+
+from geoq.learners import QGPConfig
+
+__all__ = ["SCALES", "ReproConfig", "config_for_scale"]
+
+
+@dataclass(frozen=True)
+class ReproConfig:
+    """Everything that defines one run of ``geoq reproduce``."""
+
+    scale: str = "quick"
+    """Name of the preset."""
+    root_seed: int = 2012
+    """Root of every random stream: ``SeedSequence(root_seed).spawn(...)``."""
+    seeds: int = 3
+    """Independent repetitions of Fig. 3 (training roll-outs, evaluation pairs, ground truth)."""
+    budgets: tuple[int, ...] = (10, 25, 50, 100, 200)
+    """``max_bv`` values of Fig. 3."""
+    gamma: float = 0.95
+    """Discount factor of targets and ground truth."""
+    train_rollouts: int = 3
+    """Roll-outs the GPs learn from (paper: 3)."""
+    train_steps: int = 250
+    """Steps per training roll-out (paper: 250)."""
+    graph_rollouts: int = 5
+    """Roll-outs behind the Fig. 1 graphs (paper: 5)."""
+    graph_eps: tuple[float, ...] = (0.3, 0.5)
+    """Graph thresholds drawn in Fig. 1 (paper: 0.3 and 0.5)."""
+    graph_max_bv: int = 200
+    """Basis budget of the GP that builds the Fig. 1 graphs."""
+    eval_pairs: int = 150
+    """Evaluation state-action pairs per seed, drawn from held-out roll-outs."""
+    eval_rollouts: int = 10
+    """Held-out roll-outs the evaluation pairs are drawn from."""
+    mc_rollouts: int = 50
+    """Monte-Carlo roll-outs per evaluation pair (ground truth)."""
+    map_grid: int = 30
+    """Fig. 2: the (theta, omega) grid is ``map_grid x map_grid``."""
+    map_mc_rollouts: int = 16
+    """Fig. 2: Monte-Carlo roll-outs per grid cell for the ground-truth map."""
+    map_max_bv: int = 100
+    """Fig. 2: basis budget of the three GPs drawn."""
+    td_episodes: int = 800
+    """Paper's TD baseline: episodes (paper: 800)."""
+    td_steps: int = 150
+    """Paper's TD baseline: steps per episode (paper: 150)."""
+    tune_max_bv: int = 100
+    """Basis budget used when choosing hyper-parameters by validation."""
+    tune_pairs: int = 100
+    """Held-out validation pairs for choosing the geodesic hyper-parameters."""
+    tune_mc_rollouts: int = 30
+    """Monte-Carlo roll-outs per validation pair."""
+    learner: QGPConfig = field(default_factory=QGPConfig)
+    """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
+
+    def replace(self, **changes: Any) -> ReproConfig:
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["learner"] = self.learner.as_dict()
+        out["budgets"] = list(self.budgets)
+        out["graph_eps"] = list(self.graph_eps)
+        return out
+
+
+SCALES: dict[str, ReproConfig] = {
+    "quick": ReproConfig(),
+    "paper": ReproConfig(
+        scale="paper",
+        seeds=10,
+        budgets=(5, 10, 20, 35, 50, 75, 100, 125, 150, 200),
+        eval_pairs=500,
+        eval_rollouts=20,
+        mc_rollouts=100,
+        map_grid=50,
+        map_mc_rollouts=32,
+    ),
+}
+
+
+def config_for_scale(
+    scale: Literal["quick", "paper"] | str, root_seed: int | None = None
+) -> ReproConfig:
+    """The preset called ``scale``, optionally with another root seed."""
+    if scale not in SCALES:
+        raise ValueError(f"scale must be one of {sorted(SCALES)}, got {scale!r}")
+    cfg = SCALES[scale]
+    return cfg if root_seed is None else cfg.replace(root_seed=int(root_seed))

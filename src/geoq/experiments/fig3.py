@@ -1,0 +1,174 @@
+"""Fig. 3: accuracy and predictive variance versus the basis budget ``max_bv``.
+
+Two sweeps through :func:`geoq.experiments.sweep.run_sweep` (resumable,
+parallel, one file per finished cell):
+
+1. :func:`truth_cell`, one per seed: evaluation pairs drawn from held-out
+   roll-outs of the policy, Monte-Carlo ``Q^pi`` there (mean and standard
+   error) and the paper's TD table read at the same pairs.
+2. :func:`budget_cell`, one per (kernel, max_bv, seed): the seed's training
+   roll-outs (3 x 250 steps), one GP learner, its MSE against both ground
+   truths and its normalised variance; then the same GP after a DTC refit on
+   its final BV set and graph (SPEC §1 item 2), so the effect of staleness is
+   measured on the same data.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from geoq.baselines.tabular_td import td_baseline
+from geoq.evaluation.metrics import mse, normalized_variance
+from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
+from geoq.experiments.seeding import STREAM, rng_for
+from geoq.experiments.sweep import cell_key, cell_spec, load_cell
+from geoq.learners import GPQFunction, QGPConfig
+from geoq.policies import default_policy
+from geoq.rollouts import collect_rollouts
+
+__all__ = ["FIG3_COLUMNS", "BudgetCell", "TruthCell", "budget_cell", "truth_cell"]
+
+#: Column order of ``fig3.csv``.
+FIG3_COLUMNS = (
+    "kernel",
+    "max_bv",
+    "seed",
+    "mse",
+    "normalized_variance",
+    "n_bv",
+    "mse_td",
+    "mse_refit",
+    "normalized_variance_refit",
+    "mc_noise_floor",
+    "negative_novelty",
+    "variance_clipped",
+)
+
+
+@dataclass(frozen=True)
+class TruthCell:
+    """Ground truth of one seed (the identity of a cell: changing a field recomputes it)."""
+
+    seed: int
+    root_seed: int
+    policy_sigma: float
+    gamma: float
+    eval_pairs: int
+    eval_rollouts: int
+    eval_steps: int
+    mc_rollouts: int
+    td_episodes: int
+    td_steps: int
+
+
+def truth_cell(cell: TruthCell) -> dict[str, Any]:
+    """Evaluation pairs, Monte-Carlo ``Q^pi`` and the TD table's values there."""
+    policy = default_policy(cell.policy_sigma)
+    states, actions = sample_evaluation_pairs(
+        cell.eval_pairs,
+        policy,
+        rng_for(cell.root_seed, cell.seed, STREAM["eval_pairs"]),
+        n_rollouts=cell.eval_rollouts,
+        steps=cell.eval_steps,
+    )
+    mc = mc_q_values(
+        states,
+        actions,
+        policy,
+        rng_for(cell.root_seed, cell.seed, STREAM["monte_carlo"]),
+        n_rollouts=cell.mc_rollouts,
+        gamma=cell.gamma,
+    )
+    # The TD table is run-wide (one per run, as in the paper) and rebuilt
+    # deterministically from its own stream: cheaper than shipping it around.
+    td = td_baseline(
+        policy,
+        rng_for(cell.root_seed, STREAM["td"]),
+        n_episodes=cell.td_episodes,
+        steps=cell.td_steps,
+        gamma=cell.gamma,
+    )
+    return {
+        "states": states.tolist(),
+        "actions": actions.tolist(),
+        "mc_mean": mc.mean.tolist(),
+        "mc_stderr": mc.stderr.tolist(),
+        "td": td.q(states, actions).tolist(),
+        "td_visits": td.n_visits(states, actions).tolist(),
+    }
+
+
+@dataclass(frozen=True)
+class BudgetCell:
+    """One learner on one seed's data."""
+
+    kernel: str
+    max_bv: int
+    seed: int
+    root_seed: int
+    train_rollouts: int
+    train_steps: int
+    learner: dict[str, Any]
+    truth_dir: str
+    truth: dict[str, Any]
+
+
+def load_truth(truth_dir: str | Path, truth: dict[str, Any]) -> dict[str, Any]:
+    """The finished ground-truth row of the :class:`TruthCell` given as a spec."""
+    spec = cell_spec(truth)
+    row = load_cell(Path(truth_dir) / f"{cell_key(spec)}.json", spec)
+    if row is None:
+        raise FileNotFoundError(
+            f"ground truth for seed {truth.get('seed')} is missing in {truth_dir}; "
+            "run the truth sweep first"
+        )
+    return row
+
+
+def budget_cell(cell: BudgetCell) -> dict[str, Any]:
+    """Fit one GP learner and score it against the seed's ground truths."""
+    truth = load_truth(cell.truth_dir, cell.truth)
+    states = np.asarray(truth["states"], dtype=np.float64)
+    actions = np.asarray(truth["actions"], dtype=np.float64)
+    mc_mean = np.asarray(truth["mc_mean"], dtype=np.float64)
+    td = np.asarray(truth["td"], dtype=np.float64)
+
+    config = QGPConfig.from_dict(cell.learner).replace(kernel=cell.kernel, max_bv=cell.max_bv)
+    policy = default_policy(float(cell.truth["policy_sigma"]))
+    rollouts = collect_rollouts(
+        cell.train_rollouts,
+        cell.train_steps,
+        policy,
+        rng_for(cell.root_seed, cell.seed, STREAM["train"]),
+        gamma=float(cell.truth["gamma"]),
+    )
+    start = time.perf_counter()
+    learner = GPQFunction(config).fit(rollouts)
+    fit_seconds = time.perf_counter() - start
+    assert learner.gp_ is not None
+    prior = learner.prior_variance(states, actions)
+    mean, std = learner.predict(states, actions, return_std=True)
+    diag = learner.gp_.diagnostics
+    row = {
+        "kernel": cell.kernel,
+        "max_bv": cell.max_bv,
+        "seed": cell.seed,
+        "mse": mse(mean, mc_mean),
+        "normalized_variance": normalized_variance(std**2, prior),
+        "n_bv": int(learner.gp_.n_bv),
+        "mse_td": mse(mean, td),
+        "mc_noise_floor": float(np.mean(np.asarray(truth["mc_stderr"]) ** 2)),
+        "negative_novelty": int(diag.negative_novelty),
+        "variance_clipped": int(diag.variance_clipped),
+        "fit_seconds": fit_seconds,
+    }
+    learner.refit()
+    mean, std = learner.predict(states, actions, return_std=True)
+    row["mse_refit"] = mse(mean, mc_mean)
+    row["normalized_variance_refit"] = normalized_variance(std**2, prior)
+    return row

@@ -1,0 +1,133 @@
+"""The one numerics policy of geoq: jitter, Cholesky, eigenvalue repair.
+
+Every place that factorises a kernel matrix goes through :func:`safe_cholesky`
+(GPyTorch's ``psd_safe_cholesky`` policy): try a plain Cholesky; on failure add
+``jitter * mean(diag)`` to the diagonal, multiplying the jitter by ``growth`` at
+each try and emitting a :class:`NumericalWarning` naming the jitter used; after
+``max_tries`` raise :class:`NotPSDError` naming the jitter reached and what to
+do. The constants live in one frozen :class:`NumericsConfig`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from geoq._typing import FloatArray
+
+__all__ = [
+    "CONFIG",
+    "NotPSDError",
+    "NumericalWarning",
+    "NumericsConfig",
+    "clip_eigenvalues",
+    "safe_cholesky",
+]
+
+
+class NumericalWarning(RuntimeWarning):
+    """A numerical repair happened (jitter added, eigenvalues clipped, variance clipped)."""
+
+
+class NotPSDError(np.linalg.LinAlgError):
+    """A matrix that must be positive definite is not, even after the maximal jitter."""
+
+
+@dataclass(frozen=True)
+class NumericsConfig:
+    """Numerical constants shared by every GP in geoq."""
+
+    jitter: float = 1e-10
+    """First jitter tried by :func:`safe_cholesky`, relative to the mean diagonal."""
+    growth: float = 10.0
+    """Factor by which the jitter grows at each failed try."""
+    max_tries: int = 7
+    """Number of jittered tries before :class:`NotPSDError` (1e-10 ... 1e-4 by default)."""
+    novelty_floor: float = 1e-10
+    """A point whose novelty ``gamma < novelty_floor * k(x, x)`` never becomes a basis
+    vector, whatever ``tol`` is: adding it would make ``K_BV`` numerically singular."""
+    eig_floor: float = 1e-10
+    """Eigenvalue clipping floor, relative to the largest eigenvalue."""
+
+
+#: The configuration used unless a caller passes its own.
+CONFIG = NumericsConfig()
+
+
+def safe_cholesky(
+    K: FloatArray, *, config: NumericsConfig = CONFIG, what: str = "kernel matrix"
+) -> tuple[FloatArray, float]:
+    """Lower Cholesky factor of a symmetric matrix, with escalating jitter.
+
+    Parameters
+    ----------
+    K : [n, n] symmetric matrix.
+
+    Returns
+    -------
+    L : [n, n] lower triangular with ``L @ L.T == K + jitter * I``.
+    jitter : the absolute jitter added to the diagonal (0.0 if none was needed).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if K.ndim != 2 or K.shape[0] != K.shape[1]:
+        raise ValueError(f"{what} has shape {K.shape}; expected a square matrix")
+    if K.shape[0] == 0:
+        return np.zeros((0, 0)), 0.0
+    if not np.all(np.isfinite(K)):
+        raise NotPSDError(f"{what} contains NaN or inf; check the kernel hyper-parameters")
+    try:
+        return scipy.linalg.cholesky(K, lower=True, check_finite=False), 0.0
+    except np.linalg.LinAlgError:
+        pass
+    scale = float(np.mean(np.abs(np.diag(K)))) or 1.0
+    jitter = config.jitter * scale
+    for _ in range(config.max_tries):
+        try:
+            L = scipy.linalg.cholesky(
+                K + jitter * np.eye(K.shape[0]), lower=True, check_finite=False
+            )
+        except np.linalg.LinAlgError:
+            jitter *= config.growth
+            continue
+        warnings.warn(
+            f"{what} was not positive definite; added jitter {jitter:.3g} to its diagonal",
+            NumericalWarning,
+            stacklevel=2,
+        )
+        return L, jitter
+    raise NotPSDError(
+        f"{what} ({K.shape[0]}x{K.shape[0]}) is not positive definite even with jitter "
+        f"{jitter / config.growth:.3g} on the diagonal. Increase the observation noise, "
+        "shorten the basis set (smaller max_bv or larger tol), or use a positive-definite "
+        "kernel."
+    )
+
+
+def clip_eigenvalues(K: FloatArray, *, config: NumericsConfig = CONFIG) -> tuple[FloatArray, int]:
+    """Nearest (in Frobenius norm) positive-definite matrix by eigenvalue clipping.
+
+    Eigenvalues below ``config.eig_floor * max(|eigenvalue|)`` are raised to
+    that floor. Used to repair indefinite Gram matrices of kernels that are not
+    positive definite (e.g. a Gaussian of a graph distance).
+
+    Returns
+    -------
+    K_pd : [n, n] symmetric positive-definite matrix.
+    n_clipped : number of eigenvalues that were raised.
+    """
+    K = np.asarray(K, dtype=np.float64)
+    sym = 0.5 * (K + K.T)
+    if sym.shape[0] == 0:
+        return sym, 0
+    w, V = scipy.linalg.eigh(sym, check_finite=False)
+    floor = config.eig_floor * max(float(np.max(np.abs(w))), np.finfo(np.float64).tiny)
+    low = w < floor
+    n_clipped = int(np.count_nonzero(low))
+    if n_clipped == 0:
+        return sym, 0
+    w = np.where(low, floor, w)
+    K_pd = (V * w) @ V.T
+    return 0.5 * (K_pd + K_pd.T), n_clipped

@@ -1,0 +1,638 @@
+"""The sparse online Gaussian process of Csató & Opper (2002).
+
+Sign convention
+---------------
+The posterior process is kept on a basis-vector (BV) set ``x_1 ... x_m`` as::
+
+    mean(x) = k_x^T alpha                     # [m] . [m]
+    var(x)  = k(x, x) + k_x^T C k_x           # C [m, m], negative (semi-)definite
+
+with ``k_x = [k(x_1, x), ..., k(x_m, x)]`` and ``Q = K_BV^{-1}`` [m, m]. With every
+point kept (``max_bv >= N``, ``tol = 0``) this is the exact GP:
+``alpha = (K + sigma0^2 I)^{-1} y`` and ``C = -(K + sigma0^2 I)^{-1}`` (note the minus:
+Csató & Opper's convention, the paper's eq. 1 writes ``- k C k`` with ``C`` positive).
+
+The update for one observation (``q``, ``r``, ``gamma``, the projection with
+``eta = 1/(1 + gamma r)``, the full update and the KL-optimal deletion with score
+``alpha_i^2 / (Q_ii + C_ii)``) is SPEC §1; the compiled implementation, with the
+equation numbers of Csató & Opper (2002) and the Aston report NCRG/2001/014, is
+:mod:`geoq.gp._step`. The projected update with ``eta`` is the exact Bayes update
+for the projected likelihood ``y ~ N(e_hat^T f_BV, sigma0^2)``, so on a fixed BV set
+the online pass is the projected-process (DTC) posterior; :meth:`SparseOnlineGP.refit`
+computes that posterior directly.
+
+Numerical health
+----------------
+* ``Q = K_BV^{-1}`` is never formed. The state keeps the upper Cholesky factor
+  ``R`` of ``K_BV`` (a column appended per added BV, a rank-one Cholesky update per
+  deleted BV, O(m^2)) and ``diag(Q)`` (O(m) per change, for the deletion scores).
+  Novelty is the Cholesky pivot ``gamma = k(x,x) - |R^{-T} k|^2``. An explicit
+  inverse updated by rank-one terms was seen to blow up (with ``tol = 1e-6`` and
+  hundreds of BVs ``k^T Q k`` loses every digit, spurious BVs get in, ``K_BV`` turns
+  numerically singular); the factor keeps ``gamma`` accurate to rounding.
+* Every ``resync_every`` changes of the BV set ``diag(Q)`` is recomputed exactly
+  from ``R`` (the largest relative drift found is
+  :attr:`OnlineDiagnostics.max_q_drift`), and for a basis-tracking kernel (whose
+  ``K_BV`` changes as its graph grows) ``R`` is re-factorised from the current
+  ``K_BV``. Amortised cost O(m^2) per change.
+* ``C`` is symmetric bit for bit (every update adds symmetric terms).
+* Indefinite kernels (the geodesic kernel): negative novelty is treated as "not
+  novel" and counted; an indefinite ``K_BV`` at a resync or refit goes through the
+  jitter policy of :mod:`geoq.gp.numerics` and, if even that fails, eigenvalue
+  clipping; negative predictive variances are clipped at 0. Every repair is
+  counted in :attr:`SparseOnlineGP.diagnostics` and the first one is announced by a
+  single :class:`~geoq.gp.numerics.NumericalWarning` per GP.
+* A point with ``gamma < CONFIG.novelty_floor * k(x, x)`` never becomes a BV, so
+  ``tol = 0`` with duplicated inputs is safe (and still exact: a duplicate lies in
+  the span of the BVs, where the projection is exact).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from numbers import Integral
+from os import PathLike
+from typing import Any, Literal, overload
+
+import numpy as np
+import scipy.linalg
+
+from geoq._io import ArchiveError, load_archive, save_archive
+from geoq._typing import ArrayLike, FloatArray
+from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
+from geoq.gp._step import COUNTER_NAMES, N_WORK, online_step, se_stream
+from geoq.gp.numerics import (
+    CONFIG,
+    NotPSDError,
+    NumericalWarning,
+    NumericsConfig,
+    clip_eigenvalues,
+    safe_cholesky,
+)
+from geoq.kernels.base import Kernel, kernel_from_arrays, kernel_to_arrays
+from geoq.kernels.stationary import SquaredExponential
+
+__all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
+
+_FORMAT_KIND = "SparseOnlineGP"
+_FORMAT_VERSION = 1
+_PREDICT_CHUNK = 4096
+#: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
+#: it is clipped to 0 silently; below that it is clipped *and* counted.
+_VAR_ROUNDING = 1e-9
+
+
+@dataclass(frozen=True)
+class OnlineDiagnostics:
+    """Counters of what a :class:`SparseOnlineGP` did and repaired (since the last reset)."""
+
+    n_seen: int = 0
+    """Observations processed by the online updates."""
+    n_added: int = 0
+    """Observations that became basis vectors (novel: full update)."""
+    n_projected: int = 0
+    """Observations projected onto the current basis (not novel, or negative novelty)."""
+    n_deleted: int = 0
+    """Basis vectors deleted to hold the budget (KL-optimal downdates)."""
+    negative_novelty: int = 0
+    """Observations whose novelty ``gamma`` was negative (indefinite kernel, or rounding)."""
+    variance_clipped: int = 0
+    """Negative predictive variances clipped to 0 (in updates and in :meth:`predict`),
+    counting only those below ``-1e-9 k(x, x)`` (smaller ones are rounding noise)."""
+    novelty_clipped: int = 0
+    """Projections where ``gamma`` exceeded the predictive variance and was capped."""
+    score_clipped: int = 0
+    """Deletions where ``Q_ii + C_ii <= 0`` had to be repaired (broken numerical state)."""
+    q_resyncs: int = 0
+    """Exact refreshes of ``diag(Q)`` (re-factorisations of ``K_BV`` for basis-tracking kernels)."""
+    jitter_events: int = 0
+    """Factorisations of ``K_BV`` that needed jitter (:func:`~geoq.gp.numerics.safe_cholesky`)."""
+    eig_clips: int = 0
+    """Eigenvalues of ``K_BV`` clipped when even the maximal jitter failed (indefinite kernel)."""
+    refits: int = 0
+    """Calls of :meth:`SparseOnlineGP.refit`."""
+    max_q_drift: float = 0.0
+    """Largest ``max|diag(Q)_online - diag(Q)_exact| / max|diag(Q)_exact|`` seen at a resync."""
+
+
+def robust_cholesky(
+    K: FloatArray, what: str, config: NumericsConfig = CONFIG
+) -> tuple[FloatArray, int, int]:
+    """Cholesky factor of a symmetric matrix under the single jitter policy, never raising.
+
+    Tries :func:`~geoq.gp.numerics.safe_cholesky` (silencing its per-call warning: the
+    caller counts and reports repairs); if the matrix is not PD even with the
+    maximal jitter, clips its eigenvalues (:func:`~geoq.gp.numerics.clip_eigenvalues`)
+    and factorises the repaired matrix.
+
+    Returns
+    -------
+    L : [n, n] lower triangular.
+    jitter_events : 1 if jitter was added, else 0.
+    eig_clips : number of eigenvalues clipped.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        try:
+            L, jitter = safe_cholesky(K, config=config, what=what)
+            return L, int(jitter > 0.0), 0
+        except NotPSDError:
+            K_pd, n_clipped = clip_eigenvalues(K, config=config)
+            L, jitter = safe_cholesky(K_pd, config=config, what=what)
+            return L, int(jitter > 0.0), n_clipped
+
+
+def _check_budget(max_bv: Any) -> int:
+    if isinstance(max_bv, bool) or not isinstance(max_bv, Integral) or int(max_bv) < 1:
+        raise ValueError(f"max_bv must be an integer >= 1, got {max_bv!r}")
+    return int(max_bv)
+
+
+def _check_tol(tol: Any) -> float:
+    try:
+        t = float(tol)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"tol must be a finite number >= 0, got {tol!r}") from exc
+    if not np.isfinite(t) or t < 0.0:
+        raise ValueError(f"tol must be a finite number >= 0, got {tol!r}")
+    return t
+
+
+class SparseOnlineGP:
+    """Sparse online GP regression (Csató & Opper 2002) with a basis-vector budget.
+
+    Parameters
+    ----------
+    kernel : covariance function; the GP talks to it only through ``to_basis``,
+        ``diag``, ``basis_gram`` and the ``basis_added/removed/cleared`` hooks.
+    noise : observation-noise *variance* ``sigma0^2`` (> 0).
+    max_bv : basis-vector budget (integer >= 1).
+    tol : relative novelty threshold: ``x`` becomes a BV iff ``gamma >= tol * k(x, x)``.
+    resync_every : BV-set changes between re-synchronisations ``Q = K_BV^{-1}``;
+        default ``max(8, max_bv // 4)`` (amortised O(max_bv^2) per change).
+    config : numerics constants (jitter policy, novelty floor).
+
+    Notes
+    -----
+    The squared-exponential kernel (non-subclassed) streams through one compiled
+    loop that evaluates ``k_x`` in numba; every other kernel (and in particular
+    basis-tracking ones, whose hooks Python must call between points) goes
+    through the per-point path. Both use the same compiled step.
+    """
+
+    def __init__(
+        self,
+        kernel: Kernel,
+        noise: float,
+        max_bv: int,
+        tol: float = 1e-6,
+        *,
+        resync_every: int | None = None,
+        config: NumericsConfig = CONFIG,
+    ) -> None:
+        if not isinstance(kernel, Kernel):
+            raise ValueError(f"kernel must be a geoq Kernel, got {type(kernel).__name__}")
+        self.kernel = kernel
+        self.noise = check_positive(noise, "noise")
+        self.max_bv = _check_budget(max_bv)
+        self.tol = _check_tol(tol)
+        self.resync_every = (
+            max(64, 2 * self.max_bv) if resync_every is None else _check_budget(resync_every)
+        )
+        self.config = config
+        self._dim: int | None = kernel.input_dim
+        self._reset_state()
+
+    # ------------------------------------------------------------------ state
+    def _reset_state(self) -> None:
+        cap = self.max_bv + 1
+        d = 0 if self._dim is None else self._dim
+        self._m = 0
+        self._bv = np.zeros((cap, d))  # [cap, d]
+        self._R = np.zeros((cap, cap))  # [cap, cap] upper, K_BV = R^T R
+        self._mu = np.zeros(cap)  # [cap] whitened posterior mean, f_BV = R^T u
+        self._S = np.zeros((cap, cap))  # [cap, cap] whitened posterior covariance
+        self._alpha = np.zeros(cap)  # [cap] R^{-1} mu, for the deletion scores
+        self._mdiag = np.zeros(cap)  # [cap] diag(Q + C), for the deletion scores
+        self._T = np.zeros((cap, cap))  # [cap, cap] scratch
+        self._kbuf = np.zeros(cap)
+        self._work = np.zeros((N_WORK, cap))
+        self._counters = np.zeros(len(COUNTER_NAMES), dtype=np.int64)
+        self._extra = {"q_resyncs": 0, "jitter_events": 0, "eig_clips": 0, "refits": 0}
+        self._predict_clipped = 0
+        self._max_q_drift = 0.0
+        self._changes = 0
+        self._warned = False
+
+    def _set_dim(self, d: int) -> None:
+        if self._dim is None:
+            self._dim = d
+            self._bv = np.zeros((self.max_bv + 1, d))
+
+    @property
+    def n_bv(self) -> int:
+        """Current number of basis vectors."""
+        return self._m
+
+    @property
+    def basis_vectors(self) -> FloatArray:
+        """The BV set, ``[n_bv, d]`` (a copy), in the order the kernel hooks saw."""
+        return self._bv[: self._m].copy()
+
+    def _rinv(self) -> FloatArray:
+        m = self._m
+        return scipy.linalg.solve_triangular(self._R[:m, :m], np.eye(m), check_finite=False)
+
+    @property
+    def alpha(self) -> FloatArray:
+        """Posterior mean weights ``alpha = R^{-1} mu`` ``[n_bv]``: ``mean(x) = k_x^T alpha``."""
+        return self._rinv() @ self._mu[: self._m]
+
+    @property
+    def C(self) -> FloatArray:
+        """``C = R^{-1} (S - I) R^{-T}`` ``[n_bv, n_bv]``: ``var(x) = k(x,x) + k_x^T C k_x``."""
+        m = self._m
+        Rinv = self._rinv()
+        C = Rinv @ (self._S[:m, :m] - np.eye(m)) @ Rinv.T
+        return 0.5 * (C + C.T)
+
+    @property
+    def Q(self) -> FloatArray:
+        """``Q = K_BV^{-1} = R^{-1} R^{-T}`` ``[n_bv, n_bv]`` from the maintained factor."""
+        Rinv = self._rinv()
+        Q = Rinv @ Rinv.T
+        return 0.5 * (Q + Q.T)
+
+    @property
+    def cholesky_factor(self) -> FloatArray:
+        """Upper Cholesky factor ``R`` [n_bv, n_bv] with ``K_BV = R^T R`` (a copy)."""
+        return np.triu(self._R[: self._m, : self._m])
+
+    @property
+    def whitened_posterior(self) -> tuple[FloatArray, FloatArray]:
+        """``(mu [n_bv], S [n_bv, n_bv])``: ``u ~ N(mu, S)`` with ``f_BV = R^T u`` (copies)."""
+        m = self._m
+        return self._mu[:m].copy(), self._S[:m, :m].copy()
+
+    @property
+    def diagnostics(self) -> OnlineDiagnostics:
+        """A snapshot of the counters (see :class:`OnlineDiagnostics`)."""
+        pairs = zip(COUNTER_NAMES, self._counters, strict=True)
+        counts: dict[str, Any] = {n: int(v) for n, v in pairs}
+        counts["variance_clipped"] += self._predict_clipped
+        counts.update(self._extra)
+        counts["max_q_drift"] = self._max_q_drift
+        return OnlineDiagnostics(**counts)
+
+    def _repairs(self) -> dict[str, int]:
+        d = self.diagnostics
+        keys = (
+            "variance_clipped", "novelty_clipped", "score_clipped", "jitter_events", "eig_clips",
+        )  # fmt: skip
+        return {k: getattr(d, k) for k in keys if getattr(d, k)}
+
+    def _warn_once(self) -> None:
+        if self._warned:
+            return
+        repairs = self._repairs()
+        if not repairs:
+            return
+        self._warned = True
+        what = ", ".join(f"{k}={v}" for k, v in repairs.items())
+        warnings.warn(
+            f"SparseOnlineGP repaired its numerical state ({what}); the kernel is probably "
+            "not positive definite on the basis set (e.g. a geodesic kernel) or the noise is "
+            "tiny. Repairs are counted in gp.diagnostics; this warning is shown once per GP.",
+            NumericalWarning,
+            stacklevel=3,
+        )
+
+    # ------------------------------------------------------------ validation
+    def _check_X(self, X: ArrayLike, name: str = "X") -> FloatArray:
+        return as_float_matrix(X, name, self._dim)
+
+    def _check_Xy(self, X: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        Xa = self._check_X(X)
+        ya = as_float_vector(y, "y", Xa.shape[0])
+        return Xa, ya
+
+    # --------------------------------------------------------------- updates
+    def update(self, x: ArrayLike, y: float) -> SparseOnlineGP:
+        """Process one observation ``(x [d], y)``; returns ``self``.
+
+        A rejected input (wrong shape, NaN/inf) raises ``ValueError`` and leaves
+        the model unchanged.
+        """
+        xa = as_float_point(x, "x", self._dim)
+        try:
+            ya = np.asarray(y, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"y must be a finite number, got {y!r}") from exc
+        if ya.ndim != 0 or not np.isfinite(ya):
+            raise ValueError(f"y must be one finite number, got {y!r}")
+        return self._stream(xa[None, :], ya.reshape(1))
+
+    def fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
+        """Reset to the prior (empty BV set), then stream the rows of ``X`` [N, d], ``y`` [N]."""
+        if self.kernel.input_dim is None:
+            Xa = as_float_matrix(X, "X")
+            ya = as_float_vector(y, "y", Xa.shape[0])
+            self._dim = None
+        else:
+            Xa, ya = self._check_Xy(X, y)
+        self._reset_state()
+        self.kernel.basis_cleared()
+        return self._stream(Xa, ya)
+
+    def partial_fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
+        """Stream the rows of ``X`` [N, d], ``y`` [N] in order, without resetting."""
+        Xa, ya = self._check_Xy(X, y)
+        return self._stream(Xa, ya)
+
+    def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
+        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies."""
+        k = self.kernel
+        if type(k) is not SquaredExponential or self._dim is None:
+            return None
+        inv_ls = np.broadcast_to(1.0 / np.asarray(k.lengthscale, dtype=np.float64), (self._dim,))
+        period = np.zeros(self._dim) if k.period is None else np.asarray(k.period, np.float64)
+        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(k.variance)
+
+    def _stream(self, X: FloatArray, y: FloatArray) -> SparseOnlineGP:
+        if X.shape[0] == 0:
+            return self
+        self._set_dim(X.shape[1])
+        fast = self._fast_kernel()
+        if fast is None:
+            for t in range(X.shape[0]):
+                self._update_point(X[t], float(y[t]))
+        else:
+            inv_ls, period, variance = fast
+            t = 0
+            while t < X.shape[0]:
+                t, self._m, changes = se_stream(
+                    X, y, t, inv_ls, period, variance, self.noise, self.tol,
+                    self.config.novelty_floor, self.max_bv, self._bv, self._mu, self._S,
+                    self._R, self._alpha, self._mdiag, self._m, self._kbuf, self._work, self._T,
+                    self._counters,
+                    self.resync_every - self._changes,
+                )  # fmt: skip
+                self._changes += changes
+                if self._changes >= self.resync_every:
+                    self._resync_q()
+        self._warn_once()
+        return self
+
+    def _update_point(self, x: FloatArray, y: float) -> None:
+        """Per-point path: kernel in Python, step compiled, hooks in between points."""
+        m = self._m
+        kx = np.asarray(self.kernel.to_basis(x[None, :], self._bv[:m]), dtype=np.float64)
+        kxx = np.asarray(self.kernel._diag(x[None, :]), dtype=np.float64)
+        if kx.shape != (1, m) or kxx.shape != (1,):
+            raise ValueError(
+                f"kernel returned shapes {kx.shape} and {kxx.shape}; expected (1, {m}) and (1,)"
+            )
+        if not (np.all(np.isfinite(kx)) and np.isfinite(kxx[0])):
+            raise ValueError(f"kernel returned non-finite covariances at x={x}; check it")
+        self._kbuf[:m] = kx[0]
+        self._m, added, deleted = online_step(
+            self._kbuf, float(kxx[0]), y, x, self.noise, self.tol, self.config.novelty_floor,
+            self.max_bv, self._bv, self._mu, self._S, self._R, self._alpha, self._mdiag, m,
+            self._work, self._T, self._counters,
+        )  # fmt: skip
+        if added:
+            self.kernel.basis_added(x.copy())
+        if deleted >= 0:
+            self.kernel.basis_removed(int(deleted))
+        self._changes += added + int(deleted >= 0)
+        if self._changes >= self.resync_every:
+            self._resync_q()
+
+    # ------------------------------------------------------- resync / refit
+    def _factor_gram(self) -> FloatArray:
+        """Upper Cholesky factor ``R`` [m, m] of the current ``K_BV`` under the jitter policy."""
+        m = self._m
+        K = np.asarray(self.kernel.basis_gram(self._bv[:m]), dtype=np.float64)  # [m, m]
+        if K.shape != (m, m) or not np.all(np.isfinite(K)):
+            raise ValueError(f"kernel.basis_gram returned shape {K.shape} or non-finite values")
+        L, jit, clips = robust_cholesky(0.5 * (K + K.T), "K_BV", self.config)
+        self._extra["jitter_events"] += jit
+        self._extra["eig_clips"] += clips
+        return np.ascontiguousarray(L.T)
+
+    def _refresh_scores(self) -> None:
+        """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly."""
+        m = self._m
+        Rinv = self._rinv()
+        alpha = Rinv @ self._mu[:m]
+        mdiag = np.einsum("ij,ij->i", Rinv @ self._S[:m, :m], Rinv)
+        scale = float(np.max(np.abs(mdiag))) if m else 0.0
+        if scale > 0.0:
+            drift = float(np.max(np.abs(self._mdiag[:m] - mdiag))) / scale
+            self._max_q_drift = max(self._max_q_drift, drift)
+        self._alpha[:m] = alpha
+        self._mdiag[:m] = mdiag
+
+    def _resync_q(self) -> None:
+        """Refresh the deletion scores exactly; re-anchor ``R`` for basis-tracking kernels.
+
+        A basis-tracking kernel changes ``K_BV`` between BVs as it learns (the graph
+        grows): ``R`` is re-factorised from the current ``K_BV`` and the whitened
+        posterior is transformed so that the posterior of ``f_BV`` (mean ``R^T mu``,
+        covariance ``R^T S R``) is unchanged. For other kernels the factor updates
+        are backward stable and only the O(m)-updated scores accumulate rounding.
+        """
+        self._changes = 0
+        m = self._m
+        if m == 0:
+            return
+        if self.kernel.tracks_basis:
+            R_new = self._factor_gram()
+            Tm = scipy.linalg.solve_triangular(
+                R_new, self._R[:m, :m].T, trans="T", check_finite=False
+            )  # L_new^{-1} L_old with L = R^T: maps old whitened coordinates to new ones
+            self._mu[:m] = Tm @ self._mu[:m]
+            S = Tm @ self._S[:m, :m] @ Tm.T
+            self._S[:m, :m] = 0.5 * (S + S.T)
+            self._R[:m, :m] = R_new
+        self._refresh_scores()
+        self._extra["q_resyncs"] += 1
+
+    def refit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
+        """Projected-process (DTC) posterior on the current BV set with the current kernel.
+
+        With ``K_BV = L L^T`` (``L = R^T``), ``V = L^{-1} K_BX`` [m, N] and
+        ``B = sigma0^2 I + V V^T`` the whitened posterior is::
+
+            mu = B^{-1} V y,    S = sigma0^2 B^{-1}
+
+        i.e. ``alpha = (sigma0^2 K_BV + K_BX K_XB)^{-1} K_BX y`` and
+        ``C = -K_BV^{-1} + (K_BV + K_BX K_XB / sigma0^2)^{-1}``: exactly the result of
+        the online pass had this BV set and kernel been fixed from the start (every
+        point projected, TR eq. 3.17-3.19). ``R`` is re-factorised from the current
+        ``K_BV`` (``Q = K_BV^{-1}``). Returns ``self``.
+        """
+        Xa, ya = self._check_Xy(X, y)
+        m = self._m
+        self._extra["refits"] += 1
+        if m == 0:
+            return self
+        R = self._factor_gram()  # [m, m] upper
+        Kbx = np.asarray(self.kernel.to_basis(Xa, self._bv[:m]), dtype=np.float64).T  # [m, N]
+        V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
+        B = self.noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
+        LB, jit, clips = robust_cholesky(B, "DTC system matrix", self.config)
+        self._extra["jitter_events"] += jit
+        self._extra["eig_clips"] += clips
+        Binv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
+        self._R[:m, :m] = R
+        self._mu[:m] = Binv @ (V @ ya)
+        S = self.noise * Binv
+        self._S[:m, :m] = 0.5 * (S + S.T)
+        self._changes = 0
+        self._refresh_scores()
+        self._warn_once()
+        return self
+
+    # ------------------------------------------------------------ prediction
+    @overload
+    def predict(self, X: ArrayLike, return_std: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def predict(self, X: ArrayLike, return_std: Literal[True]) -> tuple[FloatArray, FloatArray]: ...
+    def predict(
+        self, X: ArrayLike, return_std: bool = False
+    ) -> FloatArray | tuple[FloatArray, FloatArray]:
+        """Posterior mean ``[N]`` (and std ``[N]`` of the latent f, noise excluded).
+
+        With ``V = R^{-T} K_BX`` [m, N]: ``mean = V^T mu`` and
+        ``var = (diag K_XX - |V|^2) + diag(V^T S V)`` (prior residual + whitened
+        posterior term, both non-negative for a PD kernel), clipped at 0.
+        """
+        Xa = self._check_X(X)
+        n, m = Xa.shape[0], self._m
+        mean = np.empty(n)
+        std = np.empty(n) if return_std else mean
+        R, mu, S, bv = self._R[:m, :m], self._mu[:m], self._S[:m, :m], self._bv[:m]
+        for lo in range(0, n, _PREDICT_CHUNK):
+            Xc = Xa[lo : lo + _PREDICT_CHUNK]
+            K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
+            V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
+            mean[lo : lo + len(Xc)] = V.T @ mu
+            if return_std:
+                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                var = (prior - np.einsum("ij,ij->j", V, V)) + np.einsum("ij,ij->j", S @ V, V)
+                self._predict_clipped += int(np.count_nonzero(var < -_VAR_ROUNDING * prior))
+                std[lo : lo + len(Xc)] = np.sqrt(np.maximum(var, 0.0))
+        if not return_std:
+            return mean
+        self._warn_once()
+        return mean, std
+
+    # ----------------------------------------------------------- persistence
+    def save(self, path: str | PathLike[str]) -> None:
+        """Save the model (kernel included) as a versioned ``.npz`` without pickle."""
+        m = self._m
+        arrays: dict[str, Any] = {
+            "noise": np.float64(self.noise),
+            "max_bv": np.int64(self.max_bv),
+            "tol": np.float64(self.tol),
+            "resync_every": np.int64(self.resync_every),
+            "dim": np.int64(-1 if self._dim is None else self._dim),
+            "basis_vectors": self._bv[:m],
+            "cholesky_factor": np.triu(self._R[:m, :m]),
+            "mu": self._mu[:m],
+            "S": self._S[:m, :m],
+            "score_alpha": self._alpha[:m],
+            "score_mdiag": self._mdiag[:m],
+            "counters": self._counters,
+            "changes": np.int64(self._changes),
+            "warned": np.bool_(self._warned),
+        }
+        for f in fields(OnlineDiagnostics):
+            if f.name in self._extra:
+                arrays[f"extra.{f.name}"] = np.int64(self._extra[f.name])
+        arrays["predict_clipped"] = np.int64(self._predict_clipped)
+        arrays["max_q_drift"] = np.float64(self._max_q_drift)
+        arrays.update(kernel_to_arrays(self.kernel))
+        save_archive(path, _FORMAT_KIND, _FORMAT_VERSION, arrays)
+
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> SparseOnlineGP:
+        """Load a model written by :meth:`save` (basis hooks are *not* replayed)."""
+        _, a = load_archive(path, _FORMAT_KIND, _FORMAT_VERSION)
+        get = _archive_getter(a, path)
+        try:
+            kernel = kernel_from_arrays(a)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise ArchiveError(f"{path}: cannot rebuild the kernel ({exc})") from exc
+        try:
+            gp = cls(
+                kernel,
+                noise=float(get("noise", ())),
+                max_bv=int(get("max_bv", ())),
+                tol=float(get("tol", ())),
+                resync_every=int(get("resync_every", ())),
+            )
+        except ValueError as exc:
+            raise ArchiveError(f"{path}: invalid model parameters ({exc})") from exc
+        dim = int(get("dim", ()))
+        bv = get("basis_vectors", None)
+        m = bv.shape[0]
+        if bv.ndim != 2 or m > gp.max_bv or (dim >= 0 and bv.shape[1] != dim):
+            raise ArchiveError(f"{path}: basis_vectors has shape {bv.shape}; corrupt model")
+        if dim >= 0:
+            gp._dim = dim
+            gp._reset_state()
+        gp._m = m
+        gp._bv[:m] = bv
+        gp._R[:m, :m] = get("cholesky_factor", (m, m))
+        gp._mu[:m] = get("mu", (m,))
+        gp._S[:m, :m] = get("S", (m, m))
+        gp._alpha[:m] = get("score_alpha", (m,))
+        gp._mdiag[:m] = get("score_mdiag", (m,))
+        gp._counters[:] = get("counters", (len(COUNTER_NAMES),))
+        gp._changes = int(get("changes", ()))
+        gp._warned = bool(get("warned", ()))
+        for name in gp._extra:
+            gp._extra[name] = int(get(f"extra.{name}", ()))
+        gp._predict_clipped = int(get("predict_clipped", ()))
+        gp._max_q_drift = float(get("max_q_drift", ()))
+        return gp
+
+    def get_params(self) -> dict[str, Any]:
+        """Constructor parameters (kernel, noise, max_bv, tol, resync_every)."""
+        return {
+            "kernel": self.kernel,
+            "noise": self.noise,
+            "max_bv": self.max_bv,
+            "tol": self.tol,
+            "resync_every": self.resync_every,
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"SparseOnlineGP(kernel={self.kernel!r}, noise={self.noise:g}, "
+            f"max_bv={self.max_bv}, tol={self.tol:g}, n_bv={self._m})"
+        )
+
+
+def _archive_getter(
+    arrays: dict[str, np.ndarray], path: str | PathLike[str]
+) -> Callable[[str, tuple[int, ...] | None], np.ndarray]:
+    """A reader of archive entries that raises :class:`ArchiveError` on anything odd."""
+
+    def get(name: str, shape: tuple[int, ...] | None) -> np.ndarray:
+        if name not in arrays:
+            raise ArchiveError(f"{path}: entry {name!r} is missing; the file is corrupt")
+        arr = arrays[name]
+        if shape is not None and arr.shape != shape:
+            raise ArchiveError(f"{path}: entry {name!r} has shape {arr.shape}, expected {shape}")
+        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
+            raise ArchiveError(f"{path}: entry {name!r} contains NaN or inf; corrupt model")
+        if arr.dtype.kind not in "fiub":
+            raise ArchiveError(f"{path}: entry {name!r} has dtype {arr.dtype}; corrupt model")
+        return arr
+
+    return get

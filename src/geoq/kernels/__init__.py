@@ -1,0 +1,26 @@
+"""Kernels: ``k(X, Y=None) -> [n, m]``, ``k.diag(X) -> [n]``; a kernel is a profile of a distance."""
+
+from geoq.kernels.base import (
+    Distance,
+    GaussianOfDistance,
+    Kernel,
+    kernel_from_arrays,
+    kernel_to_arrays,
+)
+from geoq.kernels.geodesic import GeodesicKernel, GraphDistance
+from geoq.kernels.graph_pd import ResistanceDistance, ResistanceKernel
+from geoq.kernels.stationary import Euclidean, SquaredExponential
+
+__all__ = [
+    "Distance",
+    "Euclidean",
+    "GaussianOfDistance",
+    "GeodesicKernel",
+    "GraphDistance",
+    "Kernel",
+    "ResistanceDistance",
+    "ResistanceKernel",
+    "SquaredExponential",
+    "kernel_from_arrays",
+    "kernel_to_arrays",
+]

@@ -1,0 +1,484 @@
+"""The geodesic (shortest-path) kernel of the paper, eqs. (3)-(5).
+
+``k_sp(x, x') = amplitude * exp(-SP(x, x')^2 / (2 sigma_sp))`` (eq. 3; note
+``sigma_sp`` is *not* squared, the paper's convention), built as tinygp-style
+``GaussianOfDistance(GraphDistance(...))`` with ``r^2 = SP^2 / sigma_sp``.
+
+Definitions (``P`` = the graph's all-pairs shortest paths, ``w(.)`` = the
+graph's edge-weight function: ``||.||^2`` by default, ``||.||`` with
+``edge_weight="euclidean"``; distances are wrap-aware if ``period`` is set):
+
+* **Between nodes** ``SP(x_i, x_j) = P_ij``. A point that coincides exactly
+  with a node (zero wrap-aware distance) *is* that node (lowest index if
+  several nodes coincide); the GP's basis vectors are the nodes, by identity.
+* ``method="nearest"`` (eq. 4): ``SP(x*, x_j) = w(x* - x_i) + P_ij``, ``x_i``
+  the nearest node. Two points that are not nodes are pendant leaves hung on
+  their nearest nodes: ``SP(x, y) = w(x - a(x)) + P[a(x), a(y)] + w(y - a(y))``,
+  i.e. the shortest path in the graph augmented with both points — a metric.
+* ``method="interpolated"`` (eq. 5): ``SP(x*, x_j) = sum_i k_SE(x*, x_i) P_ij``,
+  ``k_SE(x, x') = exp(-||x - x'||^2 / (2 sigma_se))``; node weights are the unit
+  vector ``e_i``. For two non-node points the bilinear extension
+  ``SP(x, y) = k_x^T P k_y`` is used: symmetric, eq. 5 when either side is a
+  node, ``P`` on nodes. ``normalize=True`` uses weights that sum to one,
+  computed as a softmax of ``-||x - x_i||^2 / (2 sigma_se)``: they never all
+  underflow, and far from every node they concentrate on the nearest node(s)
+  (the limit of the normalised weights), i.e. ``SP(x*, x_j) -> P[a(x*), j]``.
+  Unnormalised weights vanish far from the nodes, so there ``SP -> 0`` and
+  ``k -> amplitude``: that is eq. 5 as published.
+* **Eq. 5 stalls the sparse GP** (measured, ``tests/gp/test_geodesic_gp.py``):
+  with one node, ``P = [[0]]`` so ``SP(x*, x_0) = 0`` and ``k(x*, x_0) = A`` for
+  *every* ``x*``; the novelty of every later point is exactly 0 and the BV set
+  never grows past its first point. ``attach=True`` (beyond the paper, off by
+  default) averages eq. 4's path *through each node* instead:
+  ``SP(x*, x_j) = sum_i k_SE(x*, x_i) (w(x* - x_i) + P_ij)``, i.e. eq. 5 with
+  the attaching edge of eq. 4 kept; with ``normalize=True`` it is a soft
+  nearest-node version of eq. 4 (equal to eq. 4 in the limit
+  ``sigma_se -> 0``). Between two non-node points it is
+  ``sum_{l,m} k_x,l k_y,m (w(x - x_l) + P_lm + w(y - x_m))``.
+* **Identical points** have ``SP = 0``, so ``k(x, x) = amplitude`` for every
+  ``x`` (eq. 3 at distance 0). For distinct non-node points the extensions
+  above are used even when the points are very close: the kernel has a
+  nugget-like jump at the diagonal off the nodes.
+* **Disconnected components.** ``P_ij = inf`` gives ``k = 0`` exactly. In
+  eq. 5 a node with zero weight contributes nothing (``0 * inf := 0``, so
+  underflowed weights never give NaN), and weights below
+  ``NEGLIGIBLE_WEIGHT = 1e-12`` times the largest weight of their row are set
+  to zero first (they cannot change a finite sum in float64). A node with a
+  non-negligible weight and no path to ``x_j`` makes ``SP(x*, x_j) = inf``
+  (the formula read literally), hence ``k = 0``. With no nodes at all,
+  distinct points are unreachable (``k = 0``).
+
+``SP`` is not a Euclidean distance, so ``k_sp`` is in general *not* positive
+definite (Feragen et al., CVPR 2015); see :mod:`geoq.kernels.graph_pd` for a
+positive-definite kernel on the same graph.
+
+Usage with the sparse online GP: the GP calls ``basis_added``/``basis_removed``/
+``basis_cleared`` and the graph follows its basis set. For temporal edges call
+:meth:`GeodesicKernel.start_rollout` before streaming each roll-out.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from geoq._typing import ArrayLike, FloatArray
+from geoq._validation import as_float_matrix, check_positive
+from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels.base import Distance, GaussianOfDistance, Kernel
+
+__all__ = [
+    "NEGLIGIBLE_WEIGHT",
+    "BasisGraphDistance",
+    "GeodesicKernel",
+    "GraphDistance",
+    "GraphKernel",
+    "Method",
+    "pendant_distances",
+    "weighted_paths",
+]
+
+Method = Literal["nearest", "interpolated"]
+
+#: Eq. 5 weights below this fraction of the largest weight of their row are
+#: dropped (set to 0). They cannot change a finite sum at float64 precision, and
+#: with ``0 * inf := 0`` they no longer make ``SP`` infinite on their own.
+NEGLIGIBLE_WEIGHT = 1e-12
+_NEGLIGIBLE_LOG = float(-np.log(NEGLIGIBLE_WEIGHT))
+
+
+def weighted_paths(A: FloatArray, P: FloatArray, B: FloatArray | None = None) -> FloatArray:
+    """``A P`` [N, n] (or ``A P B^T`` [N, M]) with the convention ``0 * inf = 0``.
+
+    Entries of ``P`` may be ``inf``; a product term counts only where its
+    weights are positive, and any such term with ``P = inf`` makes the result
+    ``inf``. ``A`` [N, n] and ``B`` [M, n] hold non-negative weights.
+    """
+    unreachable = np.isinf(P)
+    Pf = np.where(unreachable, 0.0, P)
+    Ui = unreachable.astype(np.float64)
+    if B is None:
+        out = A @ Pf
+        hits = (A > 0).astype(np.float64) @ Ui
+    else:
+        out = (A @ Pf) @ B.T
+        hits = ((A > 0).astype(np.float64) @ Ui) @ (B > 0).astype(np.float64).T
+    out[hits > 0] = np.inf
+    return out
+
+
+def pendant_distances(
+    graph: MDPGraph, M: FloatArray, X: FloatArray, Y: FloatArray | None = None
+) -> FloatArray:
+    """Graph distances with off-node points as pendant leaves on their nearest nodes.
+
+    ``D(x, x_j) = w(x - a(x)) + M[a(x), j]`` ([N, n] when ``Y`` is None), and
+    ``D(x, y) = w(x - a(x)) + M[a(x), a(y)] + w(y - a(y))`` [N, M] with ``D = 0``
+    for identical points. ``M`` [n, n] is a node-to-node distance (shortest
+    paths for eq. 4, effective resistances for the PD kernel); ``w`` is the
+    graph's edge weight of the attaching edge (0 for points on a node).
+    """
+    n = graph.n_nodes
+    if n == 0:
+        return _empty_graph_distances(graph, X, Y)
+    ax, r2x = graph.nearest(X)
+    cx = graph.weight_of(r2x)
+    if Y is None:
+        return cx[:, None] + M[ax, :]
+    ay, r2y = graph.nearest(Y)
+    cy = graph.weight_of(r2y)
+    D = (cx[:, None] + cy[None, :]) + M[np.ix_(ax, ay)]  # this order is exactly symmetric
+    return _zero_identical(graph, D, X, Y)
+
+
+def _empty_graph_distances(graph: MDPGraph, X: FloatArray, Y: FloatArray | None) -> FloatArray:
+    if Y is None:
+        return np.zeros((X.shape[0], 0))
+    return _zero_identical(graph, np.full((X.shape[0], Y.shape[0]), np.inf), X, Y)
+
+
+def _zero_identical(graph: MDPGraph, D: FloatArray, X: FloatArray, Y: FloatArray) -> FloatArray:
+    """Set ``D = 0`` where a row of ``X`` and a row of ``Y`` are the same point."""
+    if X is Y:
+        np.fill_diagonal(D, 0.0)
+    D[graph.squared_distances(X, Y) == 0.0] = 0.0
+    return D
+
+
+class BasisGraphDistance(Distance):
+    """A distance defined on an :class:`~geoq.graph.MDPGraph` that follows the GP's basis set.
+
+    Holds the graph, forwards the GP's ``basis_*`` hooks to it, recognises the
+    GP's basis set as the node set (node identity), and saves the full graph
+    state. Subclasses define :meth:`node_r2` (``r^2`` between nodes),
+    :meth:`to_nodes_r2` (``r^2`` from arbitrary points to the nodes) and
+    :meth:`squared` (between arbitrary points).
+    """
+
+    tracks_basis = True
+
+    def __init__(self, graph: MDPGraph) -> None:
+        self.graph = graph
+        self.input_dim = graph.dim
+
+    def node_r2(self) -> FloatArray:
+        """[n, n] ``r^2`` between the nodes."""
+        raise NotImplementedError
+
+    def to_nodes_r2(self, X: FloatArray) -> FloatArray:
+        """[N, n] ``r^2`` from the rows of ``X`` to the nodes."""
+        raise NotImplementedError
+
+    def _is_node_set(self, basis: FloatArray) -> bool:
+        g = self.graph
+        n = g.n_nodes
+        return basis.shape[0] == n and (n == 0 or np.array_equal(basis, g._X[:n]))
+
+    def squared_to_basis(self, X: FloatArray, basis: FloatArray) -> FloatArray:
+        """``r^2(X, BV)`` [N, m]; BV row ``j`` is node ``j`` when BV == graph nodes.
+
+        If ``basis`` is not the graph's node set (out of sync), the general
+        definition :meth:`squared` is used instead.
+        """
+        if not self._is_node_set(basis):
+            return self.squared(X, basis)
+        if X is basis or (X.shape == basis.shape and np.array_equal(X, basis)):
+            return self.node_r2()  # node identity
+        return self.to_nodes_r2(X)
+
+    def basis_added(self, x: FloatArray) -> None:
+        self.graph.add_node(x)
+        self.input_dim = self.graph.dim
+
+    def basis_removed(self, index: int) -> None:
+        self.graph.remove_node(index)
+
+    def basis_cleared(self) -> None:
+        self.graph.clear()
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        return {f"graph.{k}": v for k, v in self.graph.to_arrays().items()}
+
+    @staticmethod
+    def graph_from_arrays(arrays: dict[str, np.ndarray]) -> MDPGraph:
+        """The graph saved under the ``graph.`` prefix by :meth:`to_arrays`."""
+        pre = "graph."
+        return MDPGraph.from_arrays(
+            {k[len(pre) :]: v for k, v in arrays.items() if k.startswith(pre)}
+        )
+
+
+class GraphDistance(BasisGraphDistance):
+    """``r^2(x, x') = SP(x, x')^2 / sigma_sp`` on the MDP-induced graph (eqs. 3-5).
+
+    See the module docstring for the exact definitions on and off the nodes.
+
+    Parameters
+    ----------
+    graph : the :class:`~geoq.graph.MDPGraph` that follows the GP's basis set.
+    method : ``"nearest"`` (eq. 4) or ``"interpolated"`` (eq. 5).
+    sigma_sp : eq. 3 width (divides ``SP^2``; not squared).
+    sigma_se : eq. 5 width of the interpolation weights (not squared).
+    normalize : eq. 5 weights sum to one (off by default, as in the paper).
+    attach : eq. 5 averages ``w(x* - x_i) + P_ij`` instead of ``P_ij`` (module doc).
+    """
+
+    def __init__(
+        self,
+        graph: MDPGraph,
+        method: Method = "nearest",
+        sigma_sp: float = 1.0,
+        sigma_se: float = 0.01,
+        normalize: bool = False,
+        attach: bool = False,
+    ) -> None:
+        if method not in ("nearest", "interpolated"):
+            raise ValueError(
+                f"method must be 'nearest' (eq. 4) or 'interpolated' (eq. 5), got {method!r}"
+            )
+        super().__init__(graph)
+        self.method: Method = method
+        self.sigma_sp = check_positive(sigma_sp, "sigma_sp")
+        self.sigma_se = check_positive(sigma_se, "sigma_se")
+        self.normalize = bool(normalize)
+        self.attach = bool(attach)
+
+    @property
+    def _P(self) -> FloatArray:
+        n = self.graph.n_nodes
+        return self.graph._P[:n, :n]
+
+    # -- shortest paths -------------------------------------------------------------------
+    def interpolation_weights(self, X: FloatArray) -> FloatArray:
+        """[N, n] eq. 5 weights ``k_SE(x*, x_i)``; rows of points on node ``i`` are ``e_i``."""
+        return self._weights_and_costs(X)[0]
+
+    def _weights_and_costs(self, X: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Eq. 5 weights [N, n] and, with ``attach``, ``sum_i weight_i w(x - x_i)`` [N]."""
+        r2 = self.graph.squared_distances_to_nodes(X)
+        if r2.shape[1] == 0:
+            return r2, np.zeros(r2.shape[0])
+        z = r2 / (2.0 * self.sigma_se)
+        rel = z - z.min(axis=1, keepdims=True)  # -log(weight / largest weight of the row)
+        if self.normalize:
+            W = np.exp(-rel)
+        else:
+            W = np.exp(-z)
+        W[rel > _NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
+        if self.normalize:
+            W /= W.sum(axis=1, keepdims=True)
+        on_node = np.flatnonzero(r2.min(axis=1) == 0.0)
+        if on_node.size:
+            W[on_node] = 0.0
+            W[on_node, np.argmin(r2[on_node], axis=1)] = 1.0
+        cost = (
+            np.einsum("nk,nk->n", W, self.graph.weight_of(r2))
+            if self.attach
+            else np.zeros(r2.shape[0])
+        )
+        return W, cost
+
+    def shortest_path_to_nodes(self, X: FloatArray) -> FloatArray:
+        """``SP(x*, x_j)`` [N, n] by eq. 4 or eq. 5 (``P`` rows for points on nodes)."""
+        if self.method == "nearest":
+            return pendant_distances(self.graph, self._P, X)
+        W, cost = self._weights_and_costs(X)
+        return weighted_paths(W, self._P) + cost[:, None]
+
+    def shortest_path(self, X: FloatArray, Y: FloatArray) -> FloatArray:
+        """``SP(x, y)`` [N, M] for arbitrary points (module docstring); symmetric, 0 if x == y."""
+        g = self.graph
+        if self.method == "nearest":
+            return pendant_distances(g, self._P, X, Y)
+        if g.n_nodes == 0:
+            return _empty_graph_distances(g, X, Y)
+        Wx, cx = self._weights_and_costs(X)
+        Wy, cy = (Wx, cx) if Y is X else self._weights_and_costs(Y)
+        D = weighted_paths(Wx, self._P, Wy)
+        if self.attach:  # sum_{l,m} wx_l wy_m (cx_l + cy_m) = cx sum(wy) + sum(wx) cy
+            D += cx[:, None] * Wy.sum(axis=1)[None, :] + Wx.sum(axis=1)[:, None] * cy[None, :]
+        if Y is X:
+            D = 0.5 * (D + D.T)
+        return _zero_identical(g, D, X, Y)
+
+    # -- Distance interface -----------------------------------------------------------------
+    def _to_r2(self, SP: FloatArray) -> FloatArray:
+        with np.errstate(over="ignore"):
+            return SP * SP / self.sigma_sp
+
+    def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
+        return self._to_r2(self.shortest_path(X, Y))
+
+    def node_r2(self) -> FloatArray:
+        return self._to_r2(self._P)
+
+    def to_nodes_r2(self, X: FloatArray) -> FloatArray:
+        return self._to_r2(self.shortest_path_to_nodes(X))
+
+    # -- persistence --------------------------------------------------------------------------
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {
+            "method": np.asarray(self.method),
+            "sigma_sp": np.asarray(self.sigma_sp),
+            "sigma_se": np.asarray(self.sigma_se),
+            "normalize": np.asarray(self.normalize),
+            "attach": np.asarray(self.attach),
+        }
+        out.update(super().to_arrays())
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> GraphDistance:
+        method = str(arrays["method"])
+        if method not in ("nearest", "interpolated"):
+            raise ValueError(f"saved geodesic kernel has an unknown method {method!r}")
+        return cls(
+            cls.graph_from_arrays(arrays),
+            method=method,  # type: ignore[arg-type]
+            sigma_sp=float(arrays["sigma_sp"]),
+            sigma_se=float(arrays["sigma_se"]),
+            normalize=bool(arrays["normalize"]),
+            attach=bool(arrays.get("attach", False)),
+        )
+
+    def __repr__(self) -> str:
+        return (
+            f"GraphDistance(method={self.method!r}, sigma_sp={self.sigma_sp:g}, "
+            f"sigma_se={self.sigma_se:g}, normalize={self.normalize}, attach={self.attach}, "
+            f"graph={self.graph!r})"
+        )
+
+
+class GraphKernel(GaussianOfDistance):
+    """``variance * exp(-r^2 / 2)`` of a :class:`BasisGraphDistance`: the shared shell of
+    the graph kernels (graph access, roll-out marks, persistence without hook replay)."""
+
+    @property
+    def basis_distance(self) -> BasisGraphDistance:
+        assert isinstance(self.distance, BasisGraphDistance)
+        return self.distance
+
+    @property
+    def graph(self) -> MDPGraph:
+        """The MDP-induced graph over the basis vectors (nodes = the GP's BVs, same order)."""
+        return self.basis_distance.graph
+
+    @property
+    def amplitude(self) -> float:
+        """``k(x, x)``."""
+        return self.variance
+
+    @property
+    def eps(self) -> float:
+        return self.graph.eps
+
+    def start_rollout(self) -> int:
+        """Start a new roll-out (temporal edges link only nodes of the same roll-out).
+
+        With ``temporal_edges=True`` call it before streaming each roll-out, e.g.
+        ``for X, y in rollouts: gk.start_rollout(); gp.partial_fit(X, y)``.
+        """
+        return self.graph.start_rollout()
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Kernel:
+        base = GaussianOfDistance.from_arrays(arrays)
+        assert isinstance(base, GaussianOfDistance)
+        out = cls.__new__(cls)
+        GaussianOfDistance.__init__(out, base.distance, variance=base.variance)
+        return out
+
+
+class GeodesicKernel(GraphKernel):
+    """Shortest-path kernel ``k_sp = amplitude * exp(-SP^2 / (2 sigma_sp))`` (eqs. 3-5).
+
+    Parameters
+    ----------
+    eps : eq. 2 edge threshold in ``[0, 1]``.
+    method : ``"nearest"`` (eq. 4) or ``"interpolated"`` (eq. 5).
+    sigma_sp : eq. 3 width (paper default 1; divides ``SP^2``, not squared).
+    sigma_se : eq. 5 width of the interpolation weights (small; not squared).
+    amplitude : ``A`` of eq. 3, ``k(x, x) = A``.
+    normalize : eq. 5 weights sum to one (off = the paper).
+    attach : eq. 5 keeps eq. 4's attaching edge, ``sum_i k_SE (w(x* - x_i) + P_ij)``
+        (off = the paper; needed for the sparse GP to grow, see the module doc).
+    edge_weight : ``"squared"`` (eq. 2) or ``"euclidean"``; also the cost of the
+        eq. 4 attaching edge.
+    period : optional per-dimension wrap-around period ``[d]`` (0 = ordinary).
+    temporal_edges : link successive basis vectors of the same roll-out; call
+        :meth:`start_rollout` before each roll-out.
+    capacity : initial graph buffer size (grows geometrically).
+
+    ``gk.graph`` is the :class:`~geoq.graph.MDPGraph`; its nodes are the GP's
+    basis vectors in the same order. ``tracks_basis`` is True.
+    """
+
+    def __init__(
+        self,
+        eps: float = 0.3,
+        method: Method = "nearest",
+        sigma_sp: float = 1.0,
+        sigma_se: float = 0.01,
+        amplitude: float = 1.0,
+        normalize: bool = False,
+        edge_weight: EdgeWeight = "squared",
+        period: ArrayLike | None = None,
+        temporal_edges: bool = False,
+        capacity: int = 64,
+        attach: bool = False,
+    ) -> None:
+        graph = MDPGraph(
+            eps,
+            edge_weight=edge_weight,
+            period=period,
+            temporal_edges=temporal_edges,
+            capacity=capacity,
+        )
+        distance = GraphDistance(graph, method, sigma_sp, sigma_se, normalize, attach)
+        super().__init__(distance, variance=amplitude)
+
+    @property
+    def graph_distance(self) -> GraphDistance:
+        assert isinstance(self.distance, GraphDistance)
+        return self.distance
+
+    @property
+    def method(self) -> Method:
+        return self.graph_distance.method
+
+    @property
+    def sigma_sp(self) -> float:
+        return self.graph_distance.sigma_sp
+
+    @property
+    def sigma_se(self) -> float:
+        return self.graph_distance.sigma_se
+
+    @property
+    def normalize(self) -> bool:
+        return self.graph_distance.normalize
+
+    @property
+    def attach(self) -> bool:
+        return self.graph_distance.attach
+
+    def shortest_path_to_nodes(self, X: ArrayLike) -> FloatArray:
+        """``SP(x*, x_j)`` [N, n_bv] by eq. 4 or eq. 5 (rows of ``P`` for points on nodes)."""
+        Xa = as_float_matrix(X, "X", self.graph.dim)
+        return self.graph_distance.shortest_path_to_nodes(Xa)
+
+    def shortest_path(self, X: ArrayLike, Y: ArrayLike | None = None) -> FloatArray:
+        """``SP(x, y)`` [N, M] between arbitrary points (see the module docstring)."""
+        Xa = as_float_matrix(X, "X", self.graph.dim)
+        Ya = Xa if Y is None else as_float_matrix(Y, "Y", Xa.shape[1])
+        return self.graph_distance.shortest_path(Xa, Ya)
+
+    def __repr__(self) -> str:
+        d = self.graph_distance
+        return (
+            f"GeodesicKernel(eps={self.eps:g}, method={d.method!r}, sigma_sp={d.sigma_sp:g}, "
+            f"sigma_se={d.sigma_se:g}, amplitude={self.variance:g}, normalize={d.normalize}, "
+            f"attach={d.attach}, "
+            f"n_nodes={self.graph.n_nodes})"
+        )

@@ -1,0 +1,125 @@
+"""Euclidean distance (optionally wrap-aware) and the squared-exponential kernel."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.spatial.distance
+
+from geoq._typing import ArrayLike, FloatArray
+from geoq.kernels.base import Distance, GaussianOfDistance
+
+__all__ = ["Euclidean", "SquaredExponential", "as_scale_vector", "as_period_vector"]
+
+
+def as_scale_vector(value: ArrayLike, name: str) -> tuple[float | FloatArray, int | None]:
+    """A positive scalar, or a positive per-dimension vector ``[d]`` (which fixes ``d``)."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] == 0):
+        raise ValueError(f"{name} must be a scalar or a 1-D per-dimension array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    if arr.ndim == 0:
+        return float(arr), None
+    return arr.copy(), int(arr.shape[0])
+
+
+def as_period_vector(period: ArrayLike | None, dim: int | None) -> FloatArray | None:
+    """Per-dimension wrap-around periods ``[d]``; ``0`` or ``nan`` marks a non-periodic dim."""
+    if period is None:
+        return None
+    arr = np.asarray(period, dtype=np.float64)
+    if arr.ndim != 1:
+        raise ValueError(f"period must be a 1-D per-dimension array, got shape {arr.shape}")
+    if dim is not None and arr.shape[0] != dim:
+        raise ValueError(f"period has {arr.shape[0]} entries; expected {dim}")
+    arr = np.where(np.isnan(arr), 0.0, arr)
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ValueError(f"period entries must be >= 0 (0 = not periodic), got {period!r}")
+    return arr
+
+
+class Euclidean(Distance):
+    """``r^2(x, x') = sum_k ((x_k - x'_k) / scale_k)^2``, optionally wrap-aware.
+
+    Parameters
+    ----------
+    scale : positive scalar or per-dimension array ``[d]`` (a length-scale).
+    period : optional per-dimension period ``[d]`` (in input units, before
+        scaling); ``0`` marks an ordinary dimension. On a periodic dimension the
+        difference is taken on the circle: ``theta = pi`` and ``-pi`` coincide.
+    """
+
+    def __init__(self, scale: ArrayLike = 1.0, period: ArrayLike | None = None) -> None:
+        self.scale, self.input_dim = as_scale_vector(scale, "scale")
+        self.period = as_period_vector(period, self.input_dim)
+        if self.period is not None and self.input_dim is None:
+            self.input_dim = int(self.period.shape[0])
+
+    def _scaled_difference(self, diff: FloatArray) -> FloatArray:
+        if self.period is not None:
+            p = self.period
+            wrapped = diff - p * np.round(diff / np.where(p > 0, p, 1.0))
+            diff = np.where(p > 0, wrapped, diff)
+        return diff / self.scale
+
+    def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
+        if self.period is None:
+            return scipy.spatial.distance.cdist(X / self.scale, Y / self.scale, "sqeuclidean")
+        diff = self._scaled_difference(X[:, None, :] - Y[None, :, :])  # [n, m, d]
+        return np.einsum("nmd,nmd->nm", diff, diff)
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {"scale": np.asarray(self.scale)}
+        if self.period is not None:
+            out["period"] = self.period
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Euclidean:
+        return cls(scale=arrays["scale"], period=arrays.get("period"))
+
+    def __repr__(self) -> str:
+        return f"Euclidean(scale={self.scale!r}, period={self.period!r})"
+
+
+class SquaredExponential(GaussianOfDistance):
+    """``k(x, x') = variance * exp(-||x - x'||^2 / (2 lengthscale^2))``.
+
+    Parameters
+    ----------
+    lengthscale : positive scalar or per-dimension array ``[d]`` (ARD).
+    variance : prior variance ``k(x, x)``.
+    period : optional per-dimension wrap-around period (see :class:`Euclidean`).
+    """
+
+    def __init__(
+        self, lengthscale: ArrayLike = 1.0, variance: float = 1.0, period: ArrayLike | None = None
+    ) -> None:
+        super().__init__(Euclidean(scale=lengthscale, period=period), variance=variance)
+
+    @property
+    def lengthscale(self) -> float | FloatArray:
+        assert isinstance(self.distance, Euclidean)
+        return self.distance.scale
+
+    @property
+    def period(self) -> FloatArray | None:
+        assert isinstance(self.distance, Euclidean)
+        return self.distance.period
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        out = {"lengthscale": np.asarray(self.lengthscale), "variance": np.asarray(self.variance)}
+        if self.period is not None:
+            out["period"] = self.period
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> SquaredExponential:
+        return cls(
+            lengthscale=arrays["lengthscale"],
+            variance=float(arrays["variance"]),
+            period=arrays.get("period"),
+        )
+
+    def __repr__(self) -> str:
+        return f"SquaredExponential(lengthscale={self.lengthscale!r}, variance={self.variance:g})"

@@ -1,0 +1,13 @@
+"""Q-function learners built on geoq.gp and geoq.kernels."""
+
+from geoq.learners.q_gp import KERNEL_NAMES, GPQFunction, QGPConfig, make_kernel
+from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
+
+__all__ = [
+    "KERNEL_NAMES",
+    "PENDULUM_SCALING",
+    "GPQFunction",
+    "InputScaling",
+    "QGPConfig",
+    "make_kernel",
+]

@@ -1,0 +1,72 @@
+"""The claim assessment of REPORT.md, on synthetic rows whose answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoq.experiments.report import assess_claims
+from geoq.experiments.stats import mean_interval, paired_difference
+
+
+def _rows(mse_geo, mse_euc, nv_geo, nv_euc, seeds=8, noise=0.01):
+    rng = np.random.default_rng(0)
+    rows = []
+    for budget in mse_geo:
+        for s in range(seeds):
+            e = rng.normal(scale=noise)
+            rows.append(
+                {
+                    "kernel": "euclidean",
+                    "max_bv": budget,
+                    "seed": s,
+                    "mse": mse_euc[budget] + e,
+                    "normalized_variance": nv_euc[budget],
+                }
+            )
+            rows.append(
+                {
+                    "kernel": "nearest",
+                    "max_bv": budget,
+                    "seed": s,
+                    "mse": mse_geo[budget] + e + rng.normal(scale=noise / 10),
+                    "normalized_variance": nv_geo[budget] + rng.normal(scale=noise / 10),
+                }
+            )
+    return rows
+
+
+def test_paper_shaped_data_supports_every_claim():
+    budgets = [5, 10, 20, 50, 100, 200]
+    mse_euc = dict(zip(budgets, [4.0, 3.0, 2.0, 1.0, 0.5, 0.5], strict=True))
+    mse_geo = dict(zip(budgets, [2.0, 1.5, 2.0, 1.3, 0.5, 0.5], strict=True))  # worse at 50
+    nv_euc = dict(zip(budgets, [0.5, 0.4, 0.3, 0.2, 0.1, 0.05], strict=True))
+    nv_geo = {b: v + 0.1 for b, v in nv_euc.items()}
+    v = assess_claims(_rows(mse_geo, mse_euc, nv_geo, nv_euc))["nearest"]
+    assert [x["verdict"] for x in v] == ["supported", "supported", "supported", "supported"]
+    assert v[1]["threshold"] == 100
+    assert v[3]["worse_at"] == [50]
+
+
+def test_opposite_data_contradicts():
+    budgets = [5, 10, 20, 50, 100, 200]
+    mse_euc = dict.fromkeys(budgets, 1.0)
+    mse_geo = dict.fromkeys(budgets, 2.0)
+    nv = dict.fromkeys(budgets, 0.3)
+    nv_geo = {b: 0.1 for b in budgets}
+    v = assess_claims(_rows(mse_geo, mse_euc, nv_geo, nv))["nearest"]
+    assert v[0]["verdict"] == "contradicted"
+    assert v[1]["verdict"] == "not supported" and v[1]["threshold"] is None
+    assert v[2]["verdict"] == "contradicted"
+    assert v[3]["worse_at"] == budgets
+
+
+def test_intervals_match_scipy_t():
+    scipy_stats = pytest.importorskip("scipy.stats")
+    x = np.array([1.0, 2.0, 4.0, 3.5])
+    iv = mean_interval(x)
+    lo, hi = scipy_stats.t.interval(0.95, len(x) - 1, loc=x.mean(), scale=scipy_stats.sem(x))
+    assert (iv.low, iv.high) == pytest.approx((lo, hi))
+    assert mean_interval([3.0]).low == -np.inf
+    d = paired_difference([1.0, 2.0, 3.0], [0.5, 1.5, 2.0])
+    assert d.mean == pytest.approx(2 / 3)

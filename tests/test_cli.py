@@ -1,0 +1,177 @@
+"""Tests of the ``geoq`` command line plumbing: help, validation, exit codes, options -> call.
+
+The end-to-end ``geoq reproduce`` run (files, columns, figures) is tested with
+the experiments; here a *recording stand-in* replaces
+``geoq.experiments.reproduce`` so that the tests check what the CLI passes to
+the library and how it reports failures, independently of the science.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import types
+from pathlib import Path
+from typing import Any
+
+import pytest
+from typer.testing import CliRunner
+
+import geoq
+from geoq.cli import app
+
+RUNNER = CliRunner()
+WIDE = {"COLUMNS": "200", "NO_COLOR": "1"}  # rich wraps help to the terminal width
+
+
+def _invoke(*args: str) -> Any:
+    return RUNNER.invoke(app, list(args), env=WIDE)
+
+
+@pytest.fixture
+def recorded(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
+    """Install a stand-in ``geoq.experiments.reproduce`` that records its keyword arguments."""
+    calls: list[dict[str, Any]] = []
+
+    def reproduce(**kwargs: Any) -> None:
+        calls.append(kwargs)
+        if kwargs["out"].name == "boom":
+            raise RuntimeError("cell 3 failed:\nsingular matrix")
+
+    module = types.ModuleType("geoq.experiments.reproduce")
+    module.reproduce = reproduce  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "geoq.experiments.reproduce", module)
+    return calls
+
+
+def test_help_lists_the_commands() -> None:
+    result = _invoke("--help")
+    assert result.exit_code == 0, result.output
+    for command in ("reproduce", "version", "info"):
+        assert command in result.output
+
+
+def test_no_arguments_shows_help() -> None:
+    result = _invoke()
+    assert "reproduce" in result.output and "Usage" in result.output
+
+
+def test_reproduce_help_explains_every_option() -> None:
+    result = _invoke("reproduce", "--help")
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    for option in (
+        "--out",
+        "--scale",
+        "quick|paper",
+        "--jobs",
+        "--backend",
+        "loky|dask",
+        "--scheduler",
+        "ADDRESS",
+        "--seed",
+        "ROOT_SEED",
+        "--no-progress",
+    ):
+        assert option in text, option
+    for phrase in ("resumes", "SeedSequence", "geoq[dask]", "fig3.csv", "REPORT.md"):
+        assert phrase in text, phrase
+
+
+def test_version_command_and_flag_print_the_package_version() -> None:
+    assert _invoke("version").output.strip() == geoq.__version__
+    assert _invoke("--version").output.strip() == f"geoq {geoq.__version__}"
+
+
+def test_info_lists_kernels() -> None:
+    result = _invoke("info")
+    assert result.exit_code == 0, result.output
+    assert "kernels:" in result.output and "SquaredExponential" in result.output
+    assert "environments:" in result.output
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["--scale", "huge"], "'--scale'"),
+        (["--jobs", "0"], "'--jobs'"),
+        (["--jobs", "two"], "'--jobs'"),
+        (["--backend", "ray"], "'--backend'"),
+        (["--scheduler", "tcp://127.0.0.1:8786"], "'--scheduler'"),  # without --backend dask
+        (["--backend", "dask", "--scheduler", " "], "'--scheduler'"),
+        (["--seed", "-1"], "'--seed'"),
+    ],
+)
+def test_bad_options_are_usage_errors(
+    tmp_path: Path, recorded: list[dict[str, Any]], args: list[str], option: str
+) -> None:
+    result = _invoke("reproduce", "--out", str(tmp_path / "out"), *args)
+    assert result.exit_code == 2, result.output
+    assert option in result.output
+    assert recorded == []  # the library is never called with bad options
+
+
+def test_missing_out_and_out_that_is_a_file_are_usage_errors(
+    tmp_path: Path, recorded: list[dict[str, Any]]
+) -> None:
+    assert _invoke("reproduce").exit_code == 2
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x")
+    result = _invoke("reproduce", "--out", str(a_file))
+    assert result.exit_code == 2 and "'--out'" in result.output
+    assert recorded == []
+
+
+def test_options_reach_the_library_call(tmp_path: Path, recorded: list[dict[str, Any]]) -> None:
+    out = tmp_path / "out"
+    result = _invoke("reproduce", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    assert recorded[-1] == {
+        "out": out,
+        "scale": "quick",
+        "jobs": 1,
+        "backend": "loky",
+        "scheduler": None,
+        "progress": True,
+    }  # no root_seed: the preset's own default applies
+    result = _invoke(
+        "reproduce",
+        "--out",
+        str(out),
+        "--scale",
+        "PAPER",
+        "-j",
+        "2",
+        "--backend",
+        "dask",
+        "--scheduler",
+        "tcp://127.0.0.1:8786",
+        "--seed",
+        "7",
+        "--no-progress",
+    )
+    assert result.exit_code == 0, result.output
+    assert recorded[-1] == {
+        "out": out,
+        "scale": "paper",
+        "jobs": 2,
+        "backend": "dask",
+        "scheduler": "tcp://127.0.0.1:8786",
+        "progress": False,
+        "root_seed": 7,
+    }
+
+
+def test_failure_is_exit_1_with_one_line(tmp_path: Path, recorded: list[dict[str, Any]]) -> None:
+    result = _invoke("reproduce", "--out", str(tmp_path / "boom"))
+    assert result.exit_code == 1
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert lines == ["geoq reproduce: error: RuntimeError: cell 3 failed: singular matrix"]
+
+
+def test_console_script_entry_point() -> None:
+    exe = Path(sys.executable).with_name("geoq")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "geoq.cli"]
+    proc = subprocess.run([*cmd, "--help"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "reproduce" in proc.stdout

@@ -3,7 +3,7 @@
 Commands
 --------
 ``geoq reproduce --out DIR --scale quick|paper [--jobs N] [--backend loky|dask]
-[--scheduler ADDRESS] [--seed ROOT_SEED] [--no-progress]``
+[--scheduler ADDRESS] [--seed ROOT_SEED] [--config FILE] [--no-progress]``
     Reproduce every figure of the paper into ``DIR`` by calling
     :func:`geoq.experiments.reproduce.reproduce`; everything it does can be
     done from Python with that function.
@@ -180,6 +180,20 @@ def reproduce(
             help="Show progress bars over sweep cells on stderr.",
         ),
     ] = True,
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            "--config",
+            metavar="FILE",
+            exists=True,
+            dir_okay=False,
+            help=(
+                "JSON object of settings that override the --scale preset, e.g. "
+                '{"seeds": 2, "budgets": [5, 10], "learner": {"tol": 1e-4}} (field names as in '
+                "config.json). The full configuration used is recorded in config.json."
+            ),
+        ),
+    ] = None,
 ) -> None:
     """Reproduce every figure of the paper (Fig. 1-3), their data and a REPORT.md into --out."""
     if scheduler is not None and backend is not Backend.dask:
@@ -201,6 +215,16 @@ def reproduce(
     }
     if seed is not None:
         kwargs["root_seed"] = seed
+    if config is not None:
+        import json
+
+        from geoq.experiments.config import config_for_scale, config_with_overrides
+
+        try:
+            overrides = json.loads(config.read_text())
+            kwargs["config"] = config_with_overrides(config_for_scale(scale.value, seed), overrides)
+        except ValueError as exc:  # JSONDecodeError is a ValueError
+            raise typer.BadParameter(_one_line(exc), param_hint="'--config'") from exc
     try:
         from geoq.experiments.reproduce import reproduce as run_reproduce
 

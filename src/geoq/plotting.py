@@ -88,20 +88,31 @@ def plot_value_maps(maps: ValueMaps) -> Figure:
     return fig
 
 
-def plot_budget_curves(rows: Sequence[Mapping[str, Any]], *, reference: str = "mc") -> Figure:
+def plot_budget_curves(
+    rows: Sequence[Mapping[str, Any]], *, reference: str = "mc", posterior: str = "online"
+) -> Figure:
     """Fig. 3: (a) MSE and (b) normalised variance vs ``max_bv``, mean and 95% interval over seeds.
 
     ``rows`` are the tidy rows of ``fig3.csv`` (one per kernel, budget and seed).
     ``reference`` chooses the MSE column: ``"mc"`` (``mse``) or ``"td"`` (``mse_td``).
+    ``posterior``: ``"online"`` (the paper's) or ``"refit"`` (DTC on the final BV set
+    and graph; MSE against Monte-Carlo only).
     """
+    if posterior not in ("online", "refit") or reference not in ("mc", "td"):
+        raise ValueError(f"unknown reference {reference!r} or posterior {posterior!r}")
+    if posterior == "refit" and reference != "mc":
+        raise ValueError("the refit posterior is scored against Monte-Carlo only")
     column = {"mc": "mse", "td": "mse_td"}[reference]
+    var_column = "normalized_variance"
+    if posterior == "refit":
+        column, var_column = "mse_refit", "normalized_variance_refit"
     fig = Figure(figsize=(10.0, 4.0), layout="constrained")
     ax_mse, ax_var = fig.subplots(1, 2)
     kernels = [k for k in KERNEL_STYLE if any(r["kernel"] == k for r in rows)]
     for kernel in kernels:
         style = KERNEL_STYLE[kernel]
         budgets = sorted({int(r["max_bv"]) for r in rows if r["kernel"] == kernel})
-        for ax, col in ((ax_mse, column), (ax_var, "normalized_variance")):
+        for ax, col in ((ax_mse, column), (ax_var, var_column)):
             stats = [
                 mean_interval(
                     float(r[col]) for r in rows if r["kernel"] == kernel and int(r["max_bv"]) == b
@@ -115,8 +126,8 @@ def plot_budget_curves(rows: Sequence[Mapping[str, Any]], *, reference: str = "m
             ax.fill_between(budgets, low, high, color=style["color"], alpha=0.2, linewidth=0)
     n_seeds = len({r["seed"] for r in rows})
     ax_mse.set_title(
-        f"(a) mean squared error vs {'Monte-Carlo' if reference == 'mc' else 'TD'} "
-        f"Q^pi ({n_seeds} seeds, 95% CI)",
+        f"(a) MSE vs {'Monte-Carlo' if reference == 'mc' else 'TD'} Q^pi, {posterior} "
+        f"posterior ({n_seeds} seeds, 95% CI)",
         fontsize=9,
     )
     ax_mse.set_yscale("log")

@@ -70,3 +70,15 @@ def test_intervals_match_scipy_t():
     assert mean_interval([3.0]).low == -np.inf
     d = paired_difference([1.0, 2.0, 3.0], [0.5, 1.5, 2.0])
     assert d.mean == pytest.approx(2 / 3)
+
+
+def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
+    from geoq.experiments.config import SCALES, config_with_overrides
+
+    cfg = config_with_overrides(SCALES["quick"], {"seeds": 2, "learner": {"tol": 1e-3}})
+    assert cfg.seeds == 2 and cfg.learner.tol == 1e-3
+    assert cfg.learner.scaling == SCALES["quick"].learner.scaling
+    with pytest.raises(ValueError, match="unknown"):
+        config_with_overrides(SCALES["quick"], {"seedz": 2})
+    with pytest.raises(ValueError, match="budgets"):
+        config_with_overrides(SCALES["quick"], {"budgets": [0]})

@@ -7,34 +7,11 @@ import json
 
 import numpy as np
 import pytest
+from _tiny import TINY
 from matplotlib.figure import Figure
 
-from geoq.experiments.config import ReproConfig
 from geoq.experiments.fig3 import FIG3_COLUMNS
 from geoq.experiments.reproduce import reproduce
-from geoq.learners import QGPConfig
-
-TINY = ReproConfig(
-    scale="tiny",
-    seeds=2,
-    budgets=(5, 15),
-    train_rollouts=2,
-    train_steps=60,
-    graph_rollouts=2,
-    graph_max_bv=30,
-    eval_pairs=20,
-    eval_rollouts=2,
-    mc_rollouts=4,
-    map_grid=6,
-    map_mc_rollouts=2,
-    map_max_bv=15,
-    td_episodes=20,
-    td_steps=30,
-    tune_max_bv=15,
-    tune_pairs=20,
-    tune_mc_rollouts=4,
-    learner=QGPConfig(),
-)
 
 
 @pytest.fixture(scope="module")
@@ -57,6 +34,7 @@ def test_every_file_is_written(run_dir):
         "fig2.csv",
         "fig3.png",
         "fig3_td.png",
+        "fig3_refit.png",
         "fig3.csv",
         "tuning.csv",
         "config.json",

@@ -7,12 +7,13 @@ carries the configuration it came from (``config.json``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Literal
 
 from geoq.learners import QGPConfig
 
-__all__ = ["SCALES", "ReproConfig", "config_for_scale"]
+__all__ = ["SCALES", "ReproConfig", "config_for_scale", "config_with_overrides"]
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,26 @@ class ReproConfig:
     learner: QGPConfig = field(default_factory=QGPConfig)
     """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
 
+    def __post_init__(self) -> None:
+        counts = {
+            name: getattr(self, name)
+            for name in (
+                "seeds", "train_rollouts", "train_steps", "graph_rollouts", "graph_max_bv",
+                "eval_pairs", "eval_rollouts", "mc_rollouts", "map_grid", "map_mc_rollouts",
+                "map_max_bv", "td_episodes", "td_steps", "tune_max_bv", "tune_pairs",
+                "tune_mc_rollouts",
+            )
+        }  # fmt: skip
+        for name, value in counts.items():
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if not self.budgets or any(int(b) < 1 for b in self.budgets):
+            raise ValueError(f"budgets must be a non-empty list of integers >= 1: {self.budgets}")
+        if not 0.0 < self.gamma < 1.0:
+            raise ValueError(f"gamma must be in (0, 1), got {self.gamma!r}")
+        if not self.graph_eps or any(not 0.0 < e < 1.0 for e in self.graph_eps):
+            raise ValueError(f"graph_eps values must be in (0, 1), got {self.graph_eps}")
+
     def replace(self, **changes: Any) -> ReproConfig:
         return replace(self, **changes)
 
@@ -98,3 +119,27 @@ def config_for_scale(
         raise ValueError(f"scale must be one of {sorted(SCALES)}, got {scale!r}")
     cfg = SCALES[scale]
     return cfg if root_seed is None else cfg.replace(root_seed=int(root_seed))
+
+
+def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> ReproConfig:
+    """``base`` with the fields in ``overrides`` replaced (``learner`` merged field by field).
+
+    ``overrides`` is what ``geoq reproduce --config FILE`` reads from JSON, e.g.
+    ``{"seeds": 2, "budgets": [5, 10], "learner": {"tol": 1e-4}}``.
+    """
+    if not isinstance(overrides, Mapping):
+        raise ValueError(f"a configuration must be a JSON object, got {type(overrides).__name__}")
+    known = {f.name for f in fields(ReproConfig)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
+    changes = dict(overrides)
+    for name in ("budgets", "graph_eps"):
+        if name in changes:
+            changes[name] = tuple(changes[name])
+    if "learner" in changes:
+        changes["learner"] = QGPConfig.from_dict({**base.learner.as_dict(), **changes["learner"]})
+    try:
+        return base.replace(**changes)
+    except TypeError as exc:
+        raise ValueError(f"invalid configuration: {exc}") from exc

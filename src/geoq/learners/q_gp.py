@@ -66,6 +66,10 @@ class QGPConfig:
     """Width of the interpolation weights of eq. 5."""
     normalize_weights: bool = False
     """Normalise the eq. 5 weights to sum to one (the paper's sum is unnormalised)."""
+    attach_weights: bool = False
+    """Eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
+    literal eq. 5 gives every point zero novelty against a one-node graph, so its BV set
+    never grows past one point; see :mod:`geoq.kernels.geodesic`)."""
     wrap_angle: bool = False
     """Wrap-aware distance on periodic inputs (theta); the paper uses raw angles."""
     temporal_edges: bool = False
@@ -123,6 +127,7 @@ def make_kernel(config: QGPConfig) -> Kernel:
         sigma_se=config.sigma_se,
         amplitude=config.amplitude,
         normalize=config.normalize_weights,
+        attach=config.attach_weights,
         period=periods,
         temporal_edges=config.temporal_edges,
     )

@@ -43,7 +43,9 @@ def test_paper_shaped_data_supports_every_claim():
     nv_euc = dict(zip(budgets, [0.5, 0.4, 0.3, 0.2, 0.1, 0.05], strict=True))
     nv_geo = {b: v + 0.1 for b, v in nv_euc.items()}
     v = assess_claims(_rows(mse_geo, mse_euc, nv_geo, nv_euc))["nearest"]
-    assert [x["verdict"] for x in v] == ["supported", "supported", "supported", "supported"]
+    verdicts = [x["verdict"] for x in v]
+    assert verdicts[0] == verdicts[2] == verdicts[3] == "supported"
+    assert verdicts[1].startswith("consistent")
     assert v[1]["threshold"] == 100
     assert v[3]["worse_at"] == [50]
 

@@ -24,6 +24,7 @@ KERNEL_STYLE: dict[str, dict[str, str]] = {
     "euclidean": {"color": "tab:blue", "label": "Euclidean (SE)"},
     "nearest": {"color": "tab:orange", "label": "shortest path, nearest (eq. 4)"},
     "interpolated": {"color": "tab:green", "label": "shortest path, interpolated (eq. 5)"},
+    "monte_carlo": {"color": "black", "label": "Monte-Carlo Q^pi (ground truth)"},
 }
 
 
@@ -59,9 +60,14 @@ def plot_value_maps(maps: ValueMaps) -> Figure:
     names = list(maps.maps)
     fig = Figure(figsize=(4.0 * len(names), 3.8), layout="constrained")
     axes = fig.subplots(1, len(names), squeeze=False)[0]
-    finite = np.concatenate([m[np.isfinite(m)].ravel() for m in maps.maps.values()])
+    # One colour scale, the ground truth's when there is one (a learner's outliers would
+    # otherwise wash it out); values beyond it saturate.
+    scale_maps = [maps.maps["monte_carlo"]] if "monte_carlo" in maps.maps else maps.maps.values()
+    finite = np.concatenate([m[np.isfinite(m)].ravel() for m in scale_maps])
     vmin, vmax = (float(np.min(finite)), float(np.max(finite))) if finite.size else (0.0, 1.0)
-    extent = (maps.theta[0], maps.theta[-1], maps.omega[0], maps.omega[-1])
+    dt = 0.5 * (maps.theta[1] - maps.theta[0]) if maps.theta.size > 1 else 0.5
+    dw = 0.5 * (maps.omega[1] - maps.omega[0]) if maps.omega.size > 1 else 0.5
+    extent = (maps.theta[0] - dt, maps.theta[-1] + dt, maps.omega[0] - dw, maps.omega[-1] + dw)
     im = None
     for ax, name in zip(axes, names, strict=True):
         im = ax.imshow(
@@ -77,6 +83,8 @@ def plot_value_maps(maps: ValueMaps) -> Figure:
         if name in maps.basis:
             b = maps.basis[name]
             ax.scatter(b[:, 0], b[:, 1], s=3, c="white", alpha=0.6, linewidths=0)
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
         title = KERNEL_STYLE.get(name, {"label": name})["label"]
         if name in maps.mse:
             title += f"\nMSE vs MC {maps.mse[name]:.3g}"
@@ -108,7 +116,7 @@ def plot_budget_curves(
         column, var_column = "mse_refit", "normalized_variance_refit"
     fig = Figure(figsize=(10.0, 4.0), layout="constrained")
     ax_mse, ax_var = fig.subplots(1, 2)
-    kernels = [k for k in KERNEL_STYLE if any(r["kernel"] == k for r in rows)]
+    kernels = [k for k in KERNEL_STYLE if any(r["kernel"] == k for r in rows)]  # no MC rows
     for kernel in kernels:
         style = KERNEL_STYLE[kernel]
         budgets = sorted({int(r["max_bv"]) for r in rows if r["kernel"] == kernel})

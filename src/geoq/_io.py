@@ -22,10 +22,10 @@ __all__ = [
     "FORMAT_KEY",
     "ArchiveError",
     "atomic_write_bytes",
-    "atomic_write_text",
     "atomic_write_json",
-    "save_archive",
+    "atomic_write_text",
     "load_archive",
+    "save_archive",
 ]
 
 #: Name of the entry that identifies a geoq archive and its format version.

@@ -13,10 +13,10 @@ from geoq._typing import ArrayLike, FloatArray
 
 __all__ = [
     "as_float_matrix",
-    "as_float_vector",
     "as_float_point",
-    "check_positive",
+    "as_float_vector",
     "check_nonnegative",
+    "check_positive",
 ]
 
 

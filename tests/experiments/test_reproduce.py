@@ -35,6 +35,7 @@ def test_every_file_is_written(run_dir):
         "fig3.png",
         "fig3_td.png",
         "fig3_refit.png",
+        "fig3_all.csv",
         "fig3.csv",
         "tuning.csv",
         "config.json",
@@ -44,7 +45,10 @@ def test_every_file_is_written(run_dir):
     rows = _read(run_dir / "fig3.csv")
     assert list(rows[0]) == list(FIG3_COLUMNS)
     assert len(rows) == 3 * 2 * 2
-    assert {r["kernel"] for r in rows} == {"euclidean", "nearest", "interpolated"}
+    every = _read(run_dir / "fig3_all.csv")
+    assert {r["kernel"] for r in every} == {"euclidean", "nearest", "interpolated", "resistance"}
+    assert [r for r in every if r["kernel"] != "resistance"] == rows
+    assert {r["kernel"] for r in rows} == {"euclidean", "nearest", "interpolated"}  # paper only
     for r in rows:
         assert float(r["mse"]) >= 0 and 0 <= float(r["normalized_variance"]) <= 1 + 1e-9
         assert int(r["n_bv"]) <= int(r["max_bv"])

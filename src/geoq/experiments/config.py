@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Literal
 
-from geoq.learners import QGPConfig
+from geoq.learners import KERNEL_NAMES, QGPConfig
 
 __all__ = ["SCALES", "ReproConfig", "config_for_scale", "config_with_overrides"]
 
@@ -62,6 +62,9 @@ class ReproConfig:
     """Held-out validation pairs for choosing the geodesic hyper-parameters."""
     tune_mc_rollouts: int = 30
     """Monte-Carlo roll-outs per validation pair."""
+    kernels: tuple[str, ...] = KERNEL_NAMES
+    """Learners compared in Fig. 2 and 3: the paper's three and, beyond the paper, the
+    positive-definite ``resistance`` kernel on the same graph."""
     learner: QGPConfig = field(default_factory=QGPConfig)
     """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
 
@@ -82,6 +85,13 @@ class ReproConfig:
             raise ValueError(f"budgets must be a non-empty list of integers >= 1: {self.budgets}")
         if not 0.0 < self.gamma < 1.0:
             raise ValueError(f"gamma must be in (0, 1), got {self.gamma!r}")
+        if not {"euclidean", "nearest"} <= set(self.kernels) or any(
+            k not in KERNEL_NAMES for k in self.kernels
+        ):
+            raise ValueError(
+                "kernels must include 'euclidean' (the baseline) and 'nearest' (Fig. 1) and "
+                f"come from {KERNEL_NAMES}, got {self.kernels}"
+            )
         if not self.graph_eps or any(not 0.0 < e < 1.0 for e in self.graph_eps):
             raise ValueError(f"graph_eps values must be in (0, 1), got {self.graph_eps}")
 
@@ -93,6 +103,7 @@ class ReproConfig:
         out["learner"] = self.learner.as_dict()
         out["budgets"] = list(self.budgets)
         out["graph_eps"] = list(self.graph_eps)
+        out["kernels"] = list(self.kernels)
         return out
 
 
@@ -134,7 +145,7 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
     if unknown:
         raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
     changes = dict(overrides)
-    for name in ("budgets", "graph_eps"):
+    for name in ("budgets", "graph_eps", "kernels"):
         if name in changes:
             changes[name] = tuple(changes[name])
     if "learner" in changes:

@@ -25,7 +25,7 @@ from geoq.experiments.stats import Interval, mean_interval, paired_difference
 
 __all__ = ["POSTERIOR_COLUMNS", "ClaimVerdict", "assess_claims", "render_report"]
 
-GEODESIC = ("nearest", "interpolated")
+GRAPH_KERNELS = ("nearest", "interpolated", "resistance")
 #: A cell "diverged" when its MSE exceeds this multiple of the constant predictor's.
 DIVERGED = 10.0
 
@@ -59,7 +59,7 @@ POSTERIOR_COLUMNS = {
 def assess_claims(
     rows: Sequence[Mapping[str, Any]], posterior: str = "online"
 ) -> dict[str, list[ClaimVerdict]]:
-    """Per geodesic method, a verdict on each of the four Fig. 3 claims.
+    """Per graph kernel, a verdict on each of the paper's four Fig. 3 claims.
 
     ``posterior`` is ``"online"`` (the paper's online posterior) or ``"refit"``
     (the DTC refit on the final BV set and graph).
@@ -69,7 +69,7 @@ def assess_claims(
     n_small = max(1, len(budgets) // 3)
     small = budgets[:n_small]
     out: dict[str, list[ClaimVerdict]] = {}
-    for g in GEODESIC:
+    for g in GRAPH_KERNELS:
         if not any(r["kernel"] == g for r in rows):
             continue
         diff = {b: _paired(rows, g, b, mse_col) for b in budgets}
@@ -80,7 +80,7 @@ def assess_claims(
         worse_small = [b for b in small if diff[b].low > 0]
         verdicts.append(
             {
-                "claim": "geodesic kernel has lower MSE at small budgets",
+                "claim": "the graph kernel has lower MSE at small budgets",
                 "verdict": "supported"
                 if len(better) == len(small)
                 else (
@@ -119,7 +119,7 @@ def assess_claims(
         lower = [b for b in budgets if nv[b].high < 0]
         verdicts.append(
             {
-                "claim": "normalised variance decreases more slowly with the geodesic kernel",
+                "claim": "normalised variance decreases more slowly with the graph kernel",
                 "verdict": "supported"
                 if len(higher) > len(budgets) / 2
                 else ("contradicted" if len(lower) > len(budgets) / 2 else "mixed"),
@@ -132,7 +132,7 @@ def assess_claims(
         worse = [b for b in budgets if diff[b].low > 0]
         verdicts.append(
             {
-                "claim": "a band of budgets where the geodesic kernel is worse",
+                "claim": "a band of budgets where the graph kernel is worse",
                 "verdict": "supported" if worse else "not supported",
                 "worse_at": worse,
                 "evidence": {b: diff[b] for b in budgets},
@@ -144,7 +144,7 @@ def assess_claims(
 
 def _table(rows: Sequence[Mapping[str, Any]], column: str) -> list[str]:
     budgets = sorted({int(r["max_bv"]) for r in rows})
-    kernels = [k for k in ("euclidean", *GEODESIC) if any(r["kernel"] == k for r in rows)]
+    kernels = [k for k in ("euclidean", *GRAPH_KERNELS) if any(r["kernel"] == k for r in rows)]
     lines = ["| max_bv | " + " | ".join(kernels) + " |", "|---" * (len(kernels) + 1) + "|"]
     for b in budgets:
         cells = [str(mean_interval(_by(rows, k, b, column).values())) for k in kernels]
@@ -185,7 +185,9 @@ def render_report(
         f"{tuning['evidence']['n_points']} points); the prior variance and noise are shared by "
         "all three kernels.",
     ]
-    for g in GEODESIC:
+    for g in GRAPH_KERNELS:
+        if g not in tuning["configs"]:
+            continue
         c = tuning["configs"][g]
         variant = ""
         if g == "interpolated":
@@ -195,9 +197,14 @@ def render_report(
                 else f", normalize_weights = {c.get('normalize_weights')}, attach_weights = "
                 f"{c.get('attach_weights')} (beyond the paper; see tuning.csv for the literal sum)"
             )
+        params = (
+            f"resistance lengthscale = {c.get('resistance_lengthscale')}"
+            if g == "resistance"
+            else f"sigma_sp = {c['sigma_sp']}, sigma_se = {c['sigma_se']}{variant}"
+        )
         lines.append(
             f"- `{g}` by held-out validation (refit posterior, tuning.csv): eps = {c['eps']}, "
-            f"sigma_sp = {c['sigma_sp']}, sigma_se = {c['sigma_se']}{variant}"
+            + params
         )
     lines += [
         "",
@@ -245,8 +252,8 @@ def render_report(
             "",
             *_table(rows, nv_col),
             "",
-            "Basis vectors actually kept (a geodesic BV set stops growing once the "
-            "indefinite kernel makes the novelty of new points negative):",
+            "Basis vectors actually kept (a graph-kernel BV set stops growing once the "
+            "indefinite or stale Gram makes the novelty of new points negative):",
             "",
             *_table(rows, "n_bv"),
             "",
@@ -270,11 +277,11 @@ def render_report(
                     )
                 lines.append(
                     f"- **{v['claim']}: {v['verdict']}.**{extra} Paired difference "
-                    f"(geodesic - euclidean): {ev}."
+                    f"(graph kernel - euclidean): {ev}."
                 )
             lines.append("")
     lines += ["## Refit on the final basis set and graph (staleness, SPEC §1 item 2)", ""]
-    for k in ("euclidean", *GEODESIC):
+    for k in ("euclidean", *GRAPH_KERNELS):
         budgets = sorted({int(r["max_bv"]) for r in rows if r["kernel"] == k})
         parts = []
         for b in budgets:
@@ -287,7 +294,7 @@ def render_report(
     negative = sum(int(r["negative_novelty"]) for r in rows)
     floor = float(np.mean([r["mc_noise_floor"] for r in rows]))
     diverged = []
-    for k in ("euclidean", *GEODESIC):
+    for k in ("euclidean", *GRAPH_KERNELS):
         sub = [r for r in rows if r["kernel"] == k]
         if sub:
             online = sum(float(r["mse"]) > DIVERGED * float(r["mse_constant"]) for r in sub)
@@ -299,8 +306,8 @@ def render_report(
         "",
         f"- Cells whose MSE exceeds {DIVERGED:g}x that of the constant predictor (a diverged "
         "posterior; such outliers dominate the means above): " + ", ".join(diverged) + ".",
-        f"- Negative novelty (indefinite geodesic kernel) events over all cells: {negative}; "
-        f"negative predictive variances clipped to 0: {clipped}.",
+        "- Negative novelty (indefinite or stale graph-kernel Gram) events over all cells: "
+        f"{negative}; negative predictive variances clipped to 0: {clipped}.",
         f"- Monte-Carlo noise floor of the MSE (mean squared standard error): {floor:.3g}.",
         "",
         "Files: fig1.png/fig1.csv, fig2.png/fig2.csv, fig3.png/fig3.csv (fig3_refit.png for the "

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,6 +37,8 @@ from geoq.rollouts import collect_rollouts
 
 __all__ = [
     "EQ5_VARIANTS",
+    "GRAPH_KERNELS",
+    "RESISTANCE_LENGTHSCALE_GRID",
     "SIGMA_SE_GRID",
     "SIGMA_SP_GRID",
     "TUNING_COLUMNS",
@@ -59,9 +62,14 @@ TUNING_COLUMNS: tuple[str, ...] = (
     "sigma_se",
     "normalize_weights",
     "attach_weights",
+    "resistance_lengthscale",
     "n_bv",
     "val_mse",
 )
+#: Candidate ``l`` of the positive-definite ``resistance`` kernel ``A exp(-R / l)``.
+RESISTANCE_LENGTHSCALE_GRID: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+#: The kernels on the MDP graph, whose hyper-parameters are chosen by validation.
+GRAPH_KERNELS: tuple[str, ...] = ("nearest", "interpolated", "resistance")
 
 
 @dataclass(frozen=True)
@@ -150,45 +158,48 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
         gamma=cfg.gamma,
     ).mean
     validation: list[dict[str, Any]] = []
-    for method in ("nearest", "interpolated"):
-        se_grid = SIGMA_SE_GRID if method == "interpolated" else (base.sigma_se,)
-        variants = EQ5_VARIANTS if method == "interpolated" else ((False, False),)
+    for method in GRAPH_KERNELS:
+        if method not in cfg.kernels:
+            continue
         best: tuple[float, QGPConfig] | None = None
-        for eps, sigma_sp, sigma_se, (normalize, attach) in itertools.product(
-            cfg.graph_eps, SIGMA_SP_GRID, se_grid, variants
-        ):
-            candidate = shared.replace(
-                kernel=method,
-                eps=eps,
-                sigma_sp=sigma_sp,
-                sigma_se=sigma_se,
-                normalize_weights=normalize,
-                attach_weights=attach,
-                max_bv=cfg.tune_max_bv,
-            )
+        for candidate in _candidates(method, cfg, shared):
             # Scored after a refit on the final BV set and graph: the online posterior
-            # of a geodesic kernel is stale (its Gram changes as the graph grows), and
+            # of a graph kernel is stale (its Gram changes as the graph grows), and
             # the hyper-parameters should measure the kernel, not that staleness.
             learner = GPQFunction(candidate.replace(refit="end")).fit(rollouts)
             err = mse(learner.predict(states, actions), truth)
             assert learner.gp_ is not None
+            record = {c: getattr(candidate, c) for c in TUNING_COLUMNS[1:-2]}
             validation.append(
-                {
-                    "kernel": method,
-                    "eps": eps,
-                    "sigma_sp": sigma_sp,
-                    "sigma_se": sigma_se,
-                    "normalize_weights": normalize,
-                    "attach_weights": attach,
-                    "n_bv": learner.gp_.n_bv,
-                    "val_mse": err,
-                }
+                {"kernel": method, **record, "n_bv": learner.gp_.n_bv, "val_mse": err}
             )
-            if not np.isfinite(err):
-                continue
-            if best is None or err < best[0]:
+            if np.isfinite(err) and (best is None or err < best[0]):
                 best = (err, candidate)
         if best is None:
             raise RuntimeError(f"every {method} candidate gave a non-finite validation MSE")
         configs[method] = best[1].replace(max_bv=base.max_bv)
     return TuningResult(configs, evidence, validation)
+
+
+def _candidates(method: str, cfg: ReproConfig, shared: QGPConfig) -> Iterator[QGPConfig]:
+    """The validation grid of one graph kernel."""
+    if method == "resistance":
+        for eps, length in itertools.product(cfg.graph_eps, RESISTANCE_LENGTHSCALE_GRID):
+            yield shared.replace(
+                kernel=method, eps=eps, resistance_lengthscale=length, max_bv=cfg.tune_max_bv
+            )
+        return
+    se_grid = SIGMA_SE_GRID if method == "interpolated" else (shared.sigma_se,)
+    variants = EQ5_VARIANTS if method == "interpolated" else ((False, False),)
+    for eps, sigma_sp, sigma_se, (normalize, attach) in itertools.product(
+        cfg.graph_eps, SIGMA_SP_GRID, se_grid, variants
+    ):
+        yield shared.replace(
+            kernel=method,
+            eps=eps,
+            sigma_sp=sigma_sp,
+            sigma_se=sigma_se,
+            normalize_weights=normalize,
+            attach_weights=attach,
+            max_bv=cfg.tune_max_bv,
+        )

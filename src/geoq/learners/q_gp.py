@@ -8,7 +8,10 @@ into a :class:`~geoq.gp.SparseOnlineGP` whose kernel is one of
 
 * ``"euclidean"``: squared exponential (the paper's "standard GP"),
 * ``"nearest"``: geodesic kernel, eq. 3 with eq. 4,
-* ``"interpolated"``: geodesic kernel, eq. 3 with eq. 5.
+* ``"interpolated"``: geodesic kernel, eq. 3 with eq. 5,
+* ``"resistance"`` (beyond the paper): ``A exp(-R / l)`` of the effective
+  resistance ``R`` on the same graph, positive definite
+  (:class:`~geoq.kernels.ResistanceKernel`).
 
 Choices the paper leaves open, made here and recorded in :class:`QGPConfig`:
 
@@ -31,14 +34,18 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_vector
 from geoq.gp import SparseOnlineGP
-from geoq.kernels import GeodesicKernel, Kernel, SquaredExponential
+from geoq.kernels import GeodesicKernel, Kernel, ResistanceKernel, SquaredExponential
+from geoq.kernels.geodesic import GraphKernel
 from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
 from geoq.rollouts import Rollout
 
-__all__ = ["KERNEL_NAMES", "GPQFunction", "QGPConfig", "make_kernel"]
+__all__ = ["KERNEL_NAMES", "PAPER_KERNELS", "GPQFunction", "QGPConfig", "make_kernel"]
 
-KERNEL_NAMES: tuple[str, ...] = ("euclidean", "nearest", "interpolated")
-KernelName = Literal["euclidean", "nearest", "interpolated"]
+#: The paper's three kernels (the values of ``kernel`` in ``fig3.csv``).
+PAPER_KERNELS: tuple[str, ...] = ("euclidean", "nearest", "interpolated")
+#: Every kernel a learner can use: the paper's and the positive-definite graph kernel.
+KERNEL_NAMES: tuple[str, ...] = (*PAPER_KERNELS, "resistance")
+KernelName = Literal["euclidean", "nearest", "interpolated", "resistance"]
 RefitMode = Literal["none", "episode", "end"]
 
 
@@ -47,7 +54,8 @@ class QGPConfig:
     """Everything that defines a GP Q-function learner (recorded with every result)."""
 
     kernel: KernelName = "nearest"
-    """``euclidean`` (squared exponential), ``nearest`` (eq. 4) or ``interpolated`` (eq. 5)."""
+    """``euclidean`` (squared exponential), ``nearest`` (eq. 4), ``interpolated`` (eq. 5) or
+    ``resistance`` (positive-definite kernel on the same graph)."""
     max_bv: int = 100
     """Basis-vector budget of the sparse online GP."""
     tol: float = 1e-6
@@ -70,6 +78,8 @@ class QGPConfig:
     """Eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
     literal eq. 5 gives every point zero novelty against a one-node graph, so its BV set
     never grows past one point; see :mod:`geoq.kernels.geodesic`)."""
+    resistance_lengthscale: float = 1.0
+    """``l`` of the ``resistance`` kernel ``A exp(-R / l)``."""
     wrap_angle: bool = False
     """Wrap-aware distance on periodic inputs (theta); the paper uses raw angles."""
     temporal_edges: bool = False
@@ -119,6 +129,14 @@ def make_kernel(config: QGPConfig) -> Kernel:
             lengthscale=np.asarray(config.lengthscale, dtype=np.float64),
             variance=config.amplitude,
             period=periods,
+        )
+    if config.kernel == "resistance":
+        return ResistanceKernel(
+            eps=config.eps,
+            lengthscale=config.resistance_lengthscale,
+            amplitude=config.amplitude,
+            period=periods,
+            temporal_edges=config.temporal_edges,
         )
     return GeodesicKernel(
         eps=config.eps,
@@ -191,7 +209,7 @@ class GPQFunction:
         seen_X: list[FloatArray] = []
         seen_y: list[FloatArray] = []
         for X, y in zip(Xs, ys, strict=True):
-            if isinstance(gp.kernel, GeodesicKernel):
+            if isinstance(gp.kernel, GraphKernel):
                 gp.kernel.start_rollout()
             z = (y - self.y_mean_) / self.y_scale_
             gp.partial_fit(X, z)

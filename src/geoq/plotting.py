@@ -37,7 +37,9 @@ def plot_graphs(snapshots: Sequence[GraphSnapshot]) -> Figure:
         xy = snap.nodes[:, :2]
         if len(snap.edges):
             segments = np.stack([xy[snap.edges[:, 0]], xy[snap.edges[:, 1]]], axis=1)
-            ax.add_collection(LineCollection(segments, colors="0.6", linewidths=0.5, zorder=1))
+            ax.add_collection(
+                LineCollection(list(segments), colors="0.6", linewidths=0.5, zorder=1)
+            )
         sc = ax.scatter(
             xy[:, 0], xy[:, 1], c=snap.nodes[:, 2], cmap="coolwarm", s=12, zorder=2, vmin=-5, vmax=5
         )

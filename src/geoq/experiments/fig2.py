@@ -64,10 +64,11 @@ class ValueMaps:
 
 def state_grid(n: int, omega_max: float = 8.0) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Grid ``theta [n]`` over [-pi, pi), ``omega [n]`` over +-omega_max, states ``[n*n, 2]``."""
-    theta = -np.pi + (np.arange(n) + 0.5) * (2 * np.pi / n)
-    omega = np.linspace(-omega_max, omega_max, n)
+    theta = -np.pi + (np.arange(n, dtype=np.float64) + 0.5) * (2 * np.pi / n)
+    omega = np.linspace(-omega_max, omega_max, n, dtype=np.float64)
     T, W = np.meshgrid(theta, omega, indexing="ij")
-    return theta, omega, np.column_stack([T.ravel(), W.ravel()])
+    states: FloatArray = np.column_stack([T.ravel(), W.ravel()])
+    return theta, omega, states
 
 
 def value_maps(

@@ -214,10 +214,10 @@ def render_report(
         "| largest component |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for g in graphs:
-        s = g.stats
+    for snap in graphs:
+        s = snap.stats
         lines.append(
-            f"| {g.eps} | {s['n_nodes']} | {s['n_edges']} | {s['mean_degree']:.2f} | "
+            f"| {snap.eps} | {s['n_nodes']} | {s['n_edges']} | {s['mean_degree']:.2f} | "
             f"{s['max_degree']} | {s['isolated_nodes']} | {s['n_components']} | "
             f"{s['largest_component_fraction']:.0%} |"
         )

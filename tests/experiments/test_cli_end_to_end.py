@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -61,3 +66,32 @@ def test_bad_config_is_a_usage_error(tmp_path: Path) -> None:
     bad.write_text(json.dumps({"seeds": 0}))
     result = runner.invoke(app, ["reproduce", "--out", str(tmp_path / "o"), "--config", str(bad)])
     assert result.exit_code == 2 and "seeds" in result.output
+
+
+def test_killed_run_resumes_to_identical_files(tmp_path: Path, tiny_json: Path) -> None:
+    """``kill -9`` of ``geoq reproduce`` mid-sweep, rerun: same CSVs as an uninterrupted run."""
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "geoq.cli", "reproduce", "--out", str(out)]
+    cmd += ["--config", str(tiny_json), "--no-progress", "--jobs", "1"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stderr=subprocess.DEVNULL)
+    cells = out / "cells" / "fig3"
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(cells.glob("*.json"))) < 3:
+            assert proc.poll() is None, "the run ended before it could be killed"
+            assert time.monotonic() < deadline, "the Fig. 3 sweep did not start"
+            time.sleep(0.01)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    finished = {p.name: p.read_bytes() for p in cells.glob("*.json")}
+    n_cells = len(TINY.kernels) * TINY.seeds * len(TINY.budgets)
+    assert 3 <= len(finished) < n_cells, "the kill must land mid-sweep"
+    assert not (out / "fig3.csv").exists()
+
+    _run(out, tiny_json)
+    assert {p.name: p.read_bytes() for p in cells.glob("*.json") if p.name in finished} == finished
+    assert len(list(cells.glob("*.json"))) == n_cells
+    _run(tmp_path / "clean", tiny_json)
+    for name in ("fig3.csv", "fig3_all.csv", "fig1.csv", "fig2.csv", "tuning.csv"):
+        assert (out / name).read_bytes() == (tmp_path / "clean" / name).read_bytes(), name

@@ -50,6 +50,7 @@ __all__ = [
     "COUNTER_NAMES",
     "N_WORK",
     "online_step",
+    "refresh_scores",
     "se_kernel_vector",
     "se_stream",
 ]
@@ -64,12 +65,18 @@ COUNTER_NAMES: tuple[str, ...] = (
     "variance_clipped",
     "novelty_clipped",
     "score_clipped",
+    "noise_floored",
 )
-_SEEN, _ADDED, _PROJECTED, _DELETED, _NEGNOV, _VARCLIP, _NOVCLIP, _SCORECLIP = range(8)
+_SEEN, _ADDED, _PROJECTED, _DELETED, _NEGNOV, _VARCLIP, _NOVCLIP, _SCORECLIP, _NOISEFLOOR = range(9)
 
 #: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
 #: it is clipped to 0 silently; below that it is clipped *and* counted.
 _VAR_ROUNDING = 1e-9
+
+#: Whitened posterior variance (``S <= I``) below which a coordinate counts as pinned
+#: by the data: the deletion then drops it instead of conditioning on it (counted as
+#: ``score_clipped``), since ``S[:, i] / S[i, i]`` would be rounding noise.
+_PINNED = 1e-13
 
 #: Number of ``[cap]`` work vectors :func:`online_step` needs.
 N_WORK = 8
@@ -207,10 +214,11 @@ def _delete_whitened(  # pragma: no cover - compiled
             T[b, a] = h
     sig = T[i]  # row i of G^T S G (not overwritten below)
     vs = T[i, i]
-    if vs > 0.0:
+    if vs > _PINNED:
         iv = 1.0 / vs
         fm = mu[i] * iv
-    else:  # degenerate: coordinate i is already pinned, nothing to condition on
+    else:  # degenerate: coordinate i is pinned to rounding level; its regression
+        # coefficients sig / vs would be rounding noise: drop it without conditioning
         counters[_SCORECLIP] += 1
         iv = 0.0
         fm = 0.0
@@ -242,6 +250,7 @@ def online_step(  # pragma: no cover - compiled
     noise: float,
     tol: float,
     floor: float,
+    noise_floor: float,
     max_bv: int,
     BV: FloatArray,
     mu: FloatArray,
@@ -270,6 +279,9 @@ def online_step(  # pragma: no cover - compiled
     noise : observation-noise variance ``sigma0^2``.
     tol, floor : novelty is accepted iff ``gamma > 0``, ``gamma >= tol * kxx`` and
         ``gamma >= floor * kxx``.
+    noise_floor : the noise variance used is ``max(noise, noise_floor * kxx)``
+        (counted when it bites): with a noise far below the rounding level of ``S``
+        the rank-one downdates would amplify rounding errors without bound.
 
     Returns
     -------
@@ -285,20 +297,34 @@ def online_step(  # pragma: no cover - compiled
     cth = work[6]
     sth = work[7]
     counters[_SEEN] += 1
+    if noise < noise_floor * kxx:
+        noise = noise_floor * kxx
+        counters[_NOISEFLOOR] += 1
 
     # Predictive moments (CO eq. 6 / TR eq. 3.5) in whitened form: v = L^{-1} k,
     # mean = v^T mu, var = gamma + v^T S v with the novelty (TR eq. 3.16)
     # gamma = k(x,x) - k^T Q k = k(x,x) - |v|^2, the Cholesky pivot x would get.
     _forward(R, k, 0, m, v)
+    vv = _dot(v, v, 0, m)
+    gamma = kxx - vv
+    if gamma < 0.0:
+        counters[_NEGNOV] += 1
+        if gamma < -_VAR_ROUNDING * kxx:
+            # Indefinite kernel: k is not a covariance column of K_BV and |v| can be
+            # huge (seen: 1e3), so the update would amplify rounding until S is no
+            # longer PSD and blows up. Repair: scale v onto |v|^2 = k(x, x) (gamma = 0),
+            # the largest projection a PD kernel allows; the update stays exact Bayes.
+            counters[_NOVCLIP] += 1
+            sc = np.sqrt(kxx / vv)
+            for a in range(m):
+                v[a] *= sc
+        gamma = 0.0
     for a in range(m):
         g[a] = _dot_row(S, a, v, 0, m)  # g = S v [m]
     mean = _dot(mu, v, 0, m)
     vsv = _dot(v, g, 0, m)
     if vsv < 0.0:
         vsv = 0.0
-    gamma = kxx - _dot(v, v, 0, m)
-    if gamma < 0.0:
-        counters[_NEGNOV] += 1
     s2 = gamma + vsv  # var of the latent f(x) = k(x,x) + k^T C k
     if s2 < -_VAR_ROUNDING * kxx:
         counters[_VARCLIP] += 1
@@ -404,6 +430,56 @@ def online_step(  # pragma: no cover - compiled
     return m, 1, i
 
 
+@njit(cache=True, fastmath=True)
+def refresh_scores(  # pragma: no cover - compiled
+    R: FloatArray,
+    mu: FloatArray,
+    S: FloatArray,
+    m: int,
+    alpha: FloatArray,
+    mdiag: FloatArray,
+    Z: FloatArray,
+    W: FloatArray,
+) -> float:
+    """Recompute ``alpha = R^{-1} mu`` and ``mdiag = diag(R^{-1} S R^{-T})`` exactly, in place.
+
+    ``Z = R^{-1}`` (upper, by row-oriented back substitution on ``I``) and
+    ``W = Z S`` are formed in the scratch buffers ``Z``, ``W`` [cap, cap]
+    (``2/3 m^3`` flops, single-threaded). Returns the drift
+    ``max|mdiag_old - mdiag_new| / max|mdiag_new|`` (0 if ``mdiag_new == 0``).
+    """
+    for a in range(m - 1, -1, -1):  # row a of Z: (e_a - sum_{j>a} R[a, j] Z[j, :]) / R[a, a]
+        for b in range(m):
+            Z[a, b] = 0.0
+        Z[a, a] = 1.0
+        for j in range(a + 1, m):
+            raj = R[a, j]
+            for b in range(j, m):
+                Z[a, b] -= raj * Z[j, b]
+        inv = 1.0 / R[a, a]
+        for b in range(a, m):
+            Z[a, b] *= inv
+    drift = 0.0
+    scale = 0.0
+    for a in range(m):
+        for b in range(m):
+            W[a, b] = 0.0
+        acc = 0.0
+        for j in range(a, m):
+            zaj = Z[a, j]
+            acc += zaj * mu[j]
+            for b in range(m):
+                W[a, b] += zaj * S[j, b]
+        alpha[a] = acc
+        d = 0.0
+        for b in range(a, m):
+            d += W[a, b] * Z[a, b]
+        drift = max(drift, abs(mdiag[a] - d))
+        scale = max(scale, abs(d))
+        mdiag[a] = d
+    return drift / scale if scale > 0.0 else 0.0
+
+
 @njit(cache=True)
 def se_kernel_vector(  # pragma: no cover - compiled
     x: FloatArray,
@@ -442,6 +518,7 @@ def se_stream(  # pragma: no cover - compiled
     noise: float,
     tol: float,
     floor: float,
+    noise_floor: float,
     max_bv: int,
     BV: FloatArray,
     mu: FloatArray,
@@ -472,7 +549,7 @@ def se_stream(  # pragma: no cover - compiled
     while t < n:
         se_kernel_vector(X[t], BV, m, inv_ls, period, variance, kbuf)
         m, added, deleted = online_step(
-            kbuf, variance, y[t], X[t], noise, tol, floor, max_bv,
+            kbuf, variance, y[t], X[t], noise, tol, floor, noise_floor, max_bv,
             BV, mu, S, R, alpha, mdiag, m, work, T, counters,
         )  # fmt: skip
         t += 1

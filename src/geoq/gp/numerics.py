@@ -49,6 +49,10 @@ class NumericsConfig:
     novelty_floor: float = 1e-10
     """A point whose novelty ``gamma < novelty_floor * k(x, x)`` never becomes a basis
     vector, whatever ``tol`` is: adding it would make ``K_BV`` numerically singular."""
+    noise_floor: float = 1e-12
+    """Smallest noise variance the online update uses, relative to ``k(x, x)``: a noise
+    below the rounding level of the posterior would let the rank-one downdates amplify
+    rounding errors without bound (seen with noise 1e-20 and contradictory duplicates)."""
     eig_floor: float = 1e-10
     """Eigenvalue clipping floor, relative to the largest eigenvalue."""
 

@@ -37,11 +37,16 @@ Numerical health
   ``K_BV``. Amortised cost O(m^2) per change.
 * ``C`` is symmetric bit for bit (every update adds symmetric terms).
 * Indefinite kernels (the geodesic kernel): negative novelty is treated as "not
-  novel" and counted; an indefinite ``K_BV`` at a resync or refit goes through the
-  jitter policy of :mod:`geoq.gp.numerics` and, if even that fails, eigenvalue
-  clipping; negative predictive variances are clipped at 0. Every repair is
-  counted in :attr:`SparseOnlineGP.diagnostics` and the first one is announced by a
-  single :class:`~geoq.gp.numerics.NumericalWarning` per GP.
+  novel" and counted; below rounding level ``v = R^{-T} k_x`` is scaled onto
+  ``|v|^2 = k(x, x)`` first (``novelty_clipped``; unscaled, ``|v|`` reached 1e3
+  and the whitened covariance lost positive definiteness within a few hundred
+  steps). An indefinite ``K_BV`` at a resync or refit goes through the jitter
+  policy of :mod:`geoq.gp.numerics` and, if even that fails, eigenvalue clipping;
+  negative predictive variances are clipped at 0. A noise variance below
+  ``CONFIG.noise_floor * k(x, x)`` is raised to it in the updates
+  (``noise_floored``). Every repair is counted in
+  :attr:`SparseOnlineGP.diagnostics` and the first one is announced by a single
+  :class:`~geoq.gp.numerics.NumericalWarning` per GP.
 * A point with ``gamma < CONFIG.novelty_floor * k(x, x)`` never becomes a BV, so
   ``tol = 0`` with duplicated inputs is safe (and still exact: a duplicate lies in
   the span of the BVs, where the projection is exact).
@@ -62,7 +67,7 @@ import scipy.linalg
 from geoq._io import ArchiveError, load_archive, save_archive
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
-from geoq.gp._step import COUNTER_NAMES, N_WORK, online_step, se_stream
+from geoq.gp._step import COUNTER_NAMES, N_WORK, online_step, refresh_scores, se_stream
 from geoq.gp.numerics import (
     CONFIG,
     NotPSDError,
@@ -77,7 +82,8 @@ from geoq.kernels.stationary import SquaredExponential
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
 
 _FORMAT_KIND = "SparseOnlineGP"
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 2  # 2: counter "noise_floored" added (version 1 files still load)
+_N_COUNTERS_V1 = 8
 _PREDICT_CHUNK = 4096
 #: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
 #: it is clipped to 0 silently; below that it is clipped *and* counted.
@@ -102,9 +108,13 @@ class OnlineDiagnostics:
     """Negative predictive variances clipped to 0 (in updates and in :meth:`predict`),
     counting only those below ``-1e-9 k(x, x)`` (smaller ones are rounding noise)."""
     novelty_clipped: int = 0
-    """Projections where ``gamma`` exceeded the predictive variance and was capped."""
+    """Projections with a negative novelty below rounding level (indefinite kernel), where
+    ``v = R^{-T} k_x`` was scaled onto ``|v|^2 = k(x, x)`` so that the update stays stable."""
     score_clipped: int = 0
     """Deletions where ``Q_ii + C_ii <= 0`` had to be repaired (broken numerical state)."""
+    noise_floored: int = 0
+    """Updates that used the noise variance ``CONFIG.noise_floor * k(x, x)`` instead of a
+    smaller ``sigma0^2`` (below the rounding level of the posterior)."""
     q_resyncs: int = 0
     """Exact refreshes of ``diag(Q)`` (re-factorisations of ``K_BV`` for basis-tracking kernels)."""
     jitter_events: int = 0
@@ -170,8 +180,9 @@ class SparseOnlineGP:
     noise : observation-noise *variance* ``sigma0^2`` (> 0).
     max_bv : basis-vector budget (integer >= 1).
     tol : relative novelty threshold: ``x`` becomes a BV iff ``gamma >= tol * k(x, x)``.
-    resync_every : BV-set changes between re-synchronisations ``Q = K_BV^{-1}``;
-        default ``max(8, max_bv // 4)`` (amortised O(max_bv^2) per change).
+    resync_every : BV-set changes between exact refreshes of the deletion scores
+        (and re-factorisations of ``K_BV`` for basis-tracking kernels); default
+        ``max(64, 2 * max_bv)`` (amortised O(max_bv^2) per change).
     config : numerics constants (jitter policy, novelty floor).
 
     Notes
@@ -243,7 +254,8 @@ class SparseOnlineGP:
 
     def _rinv(self) -> FloatArray:
         m = self._m
-        return scipy.linalg.solve_triangular(self._R[:m, :m], np.eye(m), check_finite=False)
+        R = np.ascontiguousarray(self._R[:m, :m])
+        return scipy.linalg.solve_triangular(R, np.eye(m), check_finite=False)
 
     @property
     def alpha(self) -> FloatArray:
@@ -289,7 +301,8 @@ class SparseOnlineGP:
     def _repairs(self) -> dict[str, int]:
         d = self.diagnostics
         keys = (
-            "variance_clipped", "novelty_clipped", "score_clipped", "jitter_events", "eig_clips",
+            "variance_clipped", "novelty_clipped", "score_clipped", "noise_floored",
+            "jitter_events", "eig_clips",
         )  # fmt: skip
         return {k: getattr(d, k) for k in keys if getattr(d, k)}
 
@@ -374,9 +387,9 @@ class SparseOnlineGP:
             while t < X.shape[0]:
                 t, self._m, changes = se_stream(
                     X, y, t, inv_ls, period, variance, self.noise, self.tol,
-                    self.config.novelty_floor, self.max_bv, self._bv, self._mu, self._S,
-                    self._R, self._alpha, self._mdiag, self._m, self._kbuf, self._work, self._T,
-                    self._counters,
+                    self.config.novelty_floor, self.config.noise_floor, self.max_bv,
+                    self._bv, self._mu, self._S, self._R, self._alpha, self._mdiag, self._m,
+                    self._kbuf, self._work, self._T, self._counters,
                     self.resync_every - self._changes,
                 )  # fmt: skip
                 self._changes += changes
@@ -399,8 +412,8 @@ class SparseOnlineGP:
         self._kbuf[:m] = kx[0]
         self._m, added, deleted = online_step(
             self._kbuf, float(kxx[0]), y, x, self.noise, self.tol, self.config.novelty_floor,
-            self.max_bv, self._bv, self._mu, self._S, self._R, self._alpha, self._mdiag, m,
-            self._work, self._T, self._counters,
+            self.config.noise_floor, self.max_bv, self._bv, self._mu, self._S, self._R,
+            self._alpha, self._mdiag, m, self._work, self._T, self._counters,
         )  # fmt: skip
         if added:
             self.kernel.basis_added(x.copy())
@@ -422,18 +435,19 @@ class SparseOnlineGP:
         self._extra["eig_clips"] += clips
         return np.ascontiguousarray(L.T)
 
-    def _refresh_scores(self) -> None:
-        """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly."""
-        m = self._m
-        Rinv = self._rinv()
-        alpha = Rinv @ self._mu[:m]
-        mdiag = np.einsum("ij,ij->i", Rinv @ self._S[:m, :m], Rinv)
-        scale = float(np.max(np.abs(mdiag))) if m else 0.0
-        if scale > 0.0:
-            drift = float(np.max(np.abs(self._mdiag[:m] - mdiag))) / scale
+    def _refresh_scores(self, record_drift: bool = True) -> None:
+        """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.
+
+        Compiled and single-threaded (:func:`~geoq.gp._step.refresh_scores`): for the
+        small matrices here a threaded BLAS call was seen to cost milliseconds on a
+        busy machine.
+        """
+        Z = np.empty_like(self._T)
+        drift = refresh_scores(
+            self._R, self._mu, self._S, self._m, self._alpha, self._mdiag, Z, self._T
+        )
+        if record_drift:
             self._max_q_drift = max(self._max_q_drift, drift)
-        self._alpha[:m] = alpha
-        self._mdiag[:m] = mdiag
 
     def _resync_q(self) -> None:
         """Refresh the deletion scores exactly; re-anchor ``R`` for basis-tracking kernels.
@@ -451,7 +465,7 @@ class SparseOnlineGP:
         if self.kernel.tracks_basis:
             R_new = self._factor_gram()
             Tm = scipy.linalg.solve_triangular(
-                R_new, self._R[:m, :m].T, trans="T", check_finite=False
+                R_new, np.ascontiguousarray(self._R[:m, :m].T), trans="T", check_finite=False
             )  # L_new^{-1} L_old with L = R^T: maps old whitened coordinates to new ones
             self._mu[:m] = Tm @ self._mu[:m]
             S = Tm @ self._S[:m, :m] @ Tm.T
@@ -492,7 +506,7 @@ class SparseOnlineGP:
         S = self.noise * Binv
         self._S[:m, :m] = 0.5 * (S + S.T)
         self._changes = 0
-        self._refresh_scores()
+        self._refresh_scores(record_drift=False)  # a new posterior: nothing to compare with
         self._warn_once()
         return self
 
@@ -512,9 +526,14 @@ class SparseOnlineGP:
         """
         Xa = self._check_X(X)
         n, m = Xa.shape[0], self._m
+        if m == 0:  # the prior (the input dimension may not be known yet)
+            prior = np.asarray(self.kernel._diag(Xa), dtype=np.float64)
+            return (np.zeros(n), np.sqrt(np.maximum(prior, 0.0))) if return_std else np.zeros(n)
         mean = np.empty(n)
         std = np.empty(n) if return_std else mean
-        R, mu, S, bv = self._R[:m, :m], self._mu[:m], self._S[:m, :m], self._bv[:m]
+        # Contiguous copies: LAPACK on strided views of the [cap, cap] buffers is slow.
+        R, S = np.ascontiguousarray(self._R[:m, :m]), np.ascontiguousarray(self._S[:m, :m])
+        mu, bv = self._mu[:m], self._bv[:m]
         for lo in range(0, n, _PREDICT_CHUNK):
             Xc = Xa[lo : lo + _PREDICT_CHUNK]
             K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
@@ -561,7 +580,7 @@ class SparseOnlineGP:
     @classmethod
     def load(cls, path: str | PathLike[str]) -> SparseOnlineGP:
         """Load a model written by :meth:`save` (basis hooks are *not* replayed)."""
-        _, a = load_archive(path, _FORMAT_KIND, _FORMAT_VERSION)
+        version, a = load_archive(path, _FORMAT_KIND, _FORMAT_VERSION)
         get = _archive_getter(a, path)
         try:
             kernel = kernel_from_arrays(a)
@@ -578,21 +597,38 @@ class SparseOnlineGP:
         except ValueError as exc:
             raise ArchiveError(f"{path}: invalid model parameters ({exc})") from exc
         dim = int(get("dim", ()))
+        if kernel.input_dim is not None and dim != kernel.input_dim:
+            raise ArchiveError(
+                f"{path}: model dimension {dim} does not match the kernel's {kernel.input_dim}"
+            )
         bv = get("basis_vectors", None)
-        m = bv.shape[0]
-        if bv.ndim != 2 or m > gp.max_bv or (dim >= 0 and bv.shape[1] != dim):
+        if bv.ndim != 2 or bv.shape[0] > gp.max_bv or (dim >= 0 and bv.shape[1] != dim):
             raise ArchiveError(f"{path}: basis_vectors has shape {bv.shape}; corrupt model")
+        m = bv.shape[0]
         if dim >= 0:
             gp._dim = dim
             gp._reset_state()
         gp._m = m
         gp._bv[:m] = bv
-        gp._R[:m, :m] = get("cholesky_factor", (m, m))
+        R = get("cholesky_factor", (m, m))
+        S = get("S", (m, m))
+        if not (np.all(np.diag(R) > 0.0) and np.array_equal(R, np.triu(R))):
+            raise ArchiveError(f"{path}: cholesky_factor is not upper triangular with a positive "
+                               "diagonal; corrupt model")  # fmt: skip
+        if not np.array_equal(S, S.T):
+            raise ArchiveError(f"{path}: S is not symmetric; corrupt model")
+        gp._R[:m, :m] = R
         gp._mu[:m] = get("mu", (m,))
-        gp._S[:m, :m] = get("S", (m, m))
+        gp._S[:m, :m] = S
         gp._alpha[:m] = get("score_alpha", (m,))
         gp._mdiag[:m] = get("score_mdiag", (m,))
-        gp._counters[:] = get("counters", (len(COUNTER_NAMES),))
+        counters = get("counters", None)
+        n_old = _N_COUNTERS_V1 if version == 1 else len(COUNTER_NAMES)
+        if counters.shape != (n_old,):
+            raise ArchiveError(
+                f"{path}: entry 'counters' has shape {counters.shape}, expected ({n_old},)"
+            )
+        gp._counters[:n_old] = counters  # version 1 had no noise_floored counter
         gp._changes = int(get("changes", ()))
         gp._warned = bool(get("warned", ()))
         for name in gp._extra:

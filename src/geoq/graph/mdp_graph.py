@@ -12,10 +12,14 @@ what Dijkstra gives on the current graph after every change:
   pair ``i, k`` with ``w(v, i) + w(v, k) < P[i, k]``) can change, so the
   O(n^2) pass is skipped when ``v`` creates no shortcut (the common case on
   trajectories), and restricted to the useful rows otherwise.
-* **delete** node ``v``: only sources ``a`` with a shortest path through ``v``
-  (``P[a, v] + P[v, b] == P[a, b]`` for some ``b``, tested with a relative
-  slack) can change; they are recomputed by ``scipy.sparse.csgraph.dijkstra(
-  indices=affected)`` on the graph without ``v``; every other row is still exact.
+* **delete** node ``v``: for a source ``a`` only the targets ``T_a`` with a
+  shortest path through ``v`` (``P[a, v] + P[v, b] == P[a, b]``, tested with a
+  relative slack) can change. They are recomputed by a compiled Dijkstra
+  restricted to ``T_a`` and seeded from the unchanged distances
+  (:func:`geoq.graph._apsp.delete_node_paths`): the work is about the
+  betweenness of ``v`` times the degree, not one full Dijkstra per affected
+  source (``benchmarks/bench_graph.py`` compares it with
+  ``scipy.sparse.csgraph.dijkstra(indices=affected)``).
 
 Options beyond the paper, all off by default:
 
@@ -46,15 +50,15 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import scipy.sparse
-from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
 from geoq.graph._apsp import (
     DELETE_RTOL,
-    affected_sources,
+    delete_node_paths,
     distances_via_neighbours,
+    drop_index,
     insert_edge,
     relax_through_node,
 )
@@ -328,25 +332,12 @@ class MDPGraph:
             s = self._temporal_neighbour(v, int(self._ids[v]), before=False)
             if p >= 0 and s >= 0:
                 bridge = (p - (p > v), s - (s > v))
-        affected = affected_sources(self._P, n, v, DELETE_RTOL)
-        keep = np.r_[0:v, v + 1 : n]
-        # compact the buffers: drop row and column v
-        for M in (self._W, self._P):
-            M[v : n - 1, :n] = M[v + 1 : n, :n]
-            M[:n, v : n - 1] = M[:n, v + 1 : n]
-            M[n - 1, :n] = np.inf
-            M[:n, n - 1] = np.inf
+        self.last_delete_sources = int(delete_node_paths(self._P, self._W, n, v, DELETE_RTOL))
+        drop_index(self._P, n, v, np.inf)
+        drop_index(self._W, n, v, np.inf)
         self._X[v : n - 1] = self._X[v + 1 : n]
         self._ids[v : n - 1] = self._ids[v + 1 : n]
         self._n = m = n - 1
-        src = np.flatnonzero(affected[keep])
-        self.last_delete_sources = int(src.size)
-        if src.size:
-            rows = dijkstra(_to_csgraph(self._W[:m, :m]), directed=False, indices=src)
-            self._P[src, :m] = rows
-            self._P[:m, src] = rows.T
-            block = rows[:, src]  # two Dijkstra runs may sum a path in different orders
-            self._P[np.ix_(src, src)] = np.minimum(block, block.T)
         if bridge is not None:
             a, b = bridge
             wab = float(
@@ -393,7 +384,7 @@ class MDPGraph:
         edge_weight = str(arrays["edge_weight"])
         if edge_weight not in ("squared", "euclidean"):
             raise ValueError(f"saved graph has an unknown edge_weight {edge_weight!r}")
-        nodes = np.asarray(arrays["nodes"], dtype=np.float64)
+        nodes = np.atleast_2d(np.asarray(arrays["nodes"], dtype=np.float64))
         n = int(nodes.shape[0])
         g = cls(
             float(arrays["eps"]),
@@ -406,11 +397,7 @@ class MDPGraph:
         W = np.asarray(arrays["weights"], dtype=np.float64)
         P = np.asarray(arrays["shortest_paths"], dtype=np.float64)
         ids = np.asarray(arrays["rollout_ids"], dtype=np.int64)
-        if W.shape != (n, n) or P.shape != (n, n) or ids.shape != (n,):
-            raise ValueError(
-                f"saved graph is inconsistent: {n} nodes but weights {W.shape}, "
-                f"shortest_paths {P.shape}, rollout_ids {ids.shape}"
-            )
+        _check_saved_state(nodes, W, P, ids, dim)
         if dim >= 0:
             g._dim = dim
             g._X = np.zeros((g._cap, dim))
@@ -426,6 +413,42 @@ class MDPGraph:
         return (
             f"MDPGraph(n_nodes={self._n}, eps={self.eps:g}, edge_weight={self.edge_weight!r}, "
             f"temporal_edges={self.temporal_edges}, period={self.period!r})"
+        )
+
+
+def _check_saved_state(
+    nodes: FloatArray, W: FloatArray, P: FloatArray, ids: IntArray, dim: int
+) -> None:
+    """Raise ``ValueError`` unless a saved graph state is self-consistent.
+
+    Cheap (O(n^2)) invariants of a genuine state: shapes agree, nodes finite,
+    weights symmetric and >= 0 (``inf`` = no edge, none on the diagonal), ``P``
+    symmetric, >= 0, zero on the diagonal, never longer than a direct edge.
+    """
+    n = nodes.shape[0]
+    if nodes.ndim != 2 or (dim >= 0 and n and nodes.shape[1] != dim):
+        raise ValueError(f"saved graph nodes have shape {nodes.shape}; expected (n, {dim})")
+    if W.shape != (n, n) or P.shape != (n, n) or ids.shape != (n,):
+        raise ValueError(
+            f"saved graph is inconsistent: {n} nodes but weights {W.shape}, "
+            f"shortest_paths {P.shape}, rollout_ids {ids.shape}"
+        )
+    problems = []
+    if not np.all(np.isfinite(nodes)):
+        problems.append("nodes are not all finite")
+    if np.any(np.isnan(W)) or np.any(W < 0) or not np.array_equal(W, W.T):
+        problems.append("weights are not symmetric, non-negative and NaN-free")
+    elif n and np.any(np.isfinite(np.diag(W))):
+        problems.append("weights contain self-loops")
+    if np.any(np.isnan(P)) or np.any(P < 0) or not np.array_equal(P, P.T):
+        problems.append("shortest_paths are not symmetric, non-negative and NaN-free")
+    elif np.any(np.diag(P) != 0.0):
+        problems.append("shortest_paths have a non-zero diagonal")
+    elif np.any(P > W * (1.0 + 1e-9)):
+        problems.append("shortest_paths are longer than direct edges")
+    if problems:
+        raise ValueError(
+            f"saved graph is corrupt or tampered with ({'; '.join(problems)}); save it again"
         )
 
 

@@ -1,4 +1,4 @@
-"""Kernels: ``k(X, Y=None) -> [n, m]``, ``k.diag(X) -> [n]``; a kernel is a profile of a distance."""
+"""Kernels ``k(X, Y=None) -> [n, m]``, ``k.diag(X) -> [n]``: a kernel is a profile of a distance."""
 
 from geoq.kernels.base import (
     Distance,

@@ -184,7 +184,10 @@ class GaussianOfDistance(Kernel):
         self.distance.basis_cleared()
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        out = {"variance": np.asarray(self.variance), "distance": np.asarray(type(self.distance).__name__)}
+        out = {
+            "variance": np.asarray(self.variance),
+            "distance": np.asarray(type(self.distance).__name__),
+        }
         out.update({f"distance.{k}": v for k, v in self.distance.to_arrays().items()})
         return out
 
@@ -210,5 +213,9 @@ def kernel_from_arrays(arrays: dict[str, np.ndarray], prefix: str = "kernel.") -
     name = str(arrays[f"{prefix}class"])
     if name not in _KERNELS:
         raise ValueError(f"unknown kernel class {name!r} in saved model; known: {sorted(_KERNELS)}")
-    sub = {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix) and k != f"{prefix}class"}
+    sub = {
+        k[len(prefix) :]: v
+        for k, v in arrays.items()
+        if k.startswith(prefix) and k != f"{prefix}class"
+    }
     return _KERNELS[name].from_arrays(sub)

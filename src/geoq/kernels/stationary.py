@@ -8,14 +8,16 @@ import scipy.spatial.distance
 from geoq._typing import ArrayLike, FloatArray
 from geoq.kernels.base import Distance, GaussianOfDistance
 
-__all__ = ["Euclidean", "SquaredExponential", "as_scale_vector", "as_period_vector"]
+__all__ = ["Euclidean", "SquaredExponential", "as_period_vector", "as_scale_vector"]
 
 
 def as_scale_vector(value: ArrayLike, name: str) -> tuple[float | FloatArray, int | None]:
     """A positive scalar, or a positive per-dimension vector ``[d]`` (which fixes ``d``)."""
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] == 0):
-        raise ValueError(f"{name} must be a scalar or a 1-D per-dimension array, got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must be a scalar or a 1-D per-dimension array, got shape {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
     if arr.ndim == 0:

@@ -19,6 +19,7 @@ __all__ = [
     "drop_index",
     "insert_edge",
     "relax_through_node",
+    "wrapped_squared_distances",
 ]
 
 #: Relative slack of the "was node v on a shortest path?" test of a deletion. Paths
@@ -292,3 +293,25 @@ def drop_index(M: FloatArray, n: int, v: int, fill: float) -> None:
     last = M[n - 1]
     for j in range(n):
         last[j] = fill
+
+
+@numba.njit(cache=True, nogil=True)
+def wrapped_squared_distances(X: FloatArray, Y: FloatArray, period: FloatArray) -> FloatArray:
+    """``[N, d] x [M, d] -> [N, M]`` squared distances; dimension ``k`` wraps if ``period[k] > 0``.
+
+    The wrapped difference is ``diff - p * round(diff / p)`` (round half to even),
+    the convention of :class:`geoq.kernels.stationary.Euclidean`.
+    """
+    N, M, d = X.shape[0], Y.shape[0], X.shape[1]
+    out = np.empty((N, M))
+    for i in range(N):
+        for j in range(M):
+            s = 0.0
+            for k in range(d):
+                diff = X[i, k] - Y[j, k]
+                p = period[k]
+                if p > 0.0:
+                    diff = diff - p * np.rint(diff / p)
+                s += diff * diff
+            out[i, j] = s
+    return out

@@ -61,6 +61,7 @@ from geoq.graph._apsp import (
     drop_index,
     insert_edge,
     relax_through_node,
+    wrapped_squared_distances,
 )
 
 if TYPE_CHECKING:
@@ -120,6 +121,7 @@ class MDPGraph:
         self.period = as_period_vector(period, None)
         self.temporal_edges = bool(temporal_edges)
         self._metric: Euclidean = Euclidean(scale=1.0, period=self.period)
+        self._zero_period: FloatArray | None = None
         self._dim: int | None = None if self.period is None else int(self.period.shape[0])
         self._cap = max(int(capacity), 1)
         self._n = 0
@@ -207,7 +209,20 @@ class MDPGraph:
 
     def squared_distances(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         """Wrap-aware squared Euclidean distances ``[N, d] x [M, d] -> [N, M]``."""
-        return self._metric.squared(X, Y)
+        if X.shape[0] == 0 or Y.shape[0] == 0:
+            return np.zeros((X.shape[0], Y.shape[0]))
+        return wrapped_squared_distances(
+            np.ascontiguousarray(X, dtype=np.float64),
+            np.ascontiguousarray(Y, dtype=np.float64),
+            self._period_or_zeros(X.shape[1]),
+        )
+
+    def _period_or_zeros(self, d: int) -> FloatArray:
+        if self.period is not None:
+            return self.period
+        if self._zero_period is None or self._zero_period.shape[0] != d:
+            self._zero_period = np.zeros(d)
+        return self._zero_period
 
     def weight_of(self, r2: FloatArray) -> FloatArray:
         """Edge weight for squared distances ``r2``: ``r2`` or ``sqrt(r2)``."""

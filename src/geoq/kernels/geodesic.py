@@ -76,6 +76,7 @@ __all__ = [
     "GraphKernel",
     "Method",
     "pendant_distances",
+    "split_unreachable",
     "weighted_paths",
 ]
 
@@ -88,16 +89,26 @@ NEGLIGIBLE_WEIGHT = 1e-12
 _NEGLIGIBLE_LOG = float(-np.log(NEGLIGIBLE_WEIGHT))
 
 
-def weighted_paths(A: FloatArray, P: FloatArray, B: FloatArray | None = None) -> FloatArray:
+def split_unreachable(P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(P with inf -> 0, indicator of inf as 0/1 floats)``, both [n, n]."""
+    unreachable = np.isinf(P)
+    return np.where(unreachable, 0.0, P), unreachable.astype(np.float64)
+
+
+def weighted_paths(
+    A: FloatArray,
+    P: FloatArray,
+    B: FloatArray | None = None,
+    split: tuple[FloatArray, FloatArray] | None = None,
+) -> FloatArray:
     """``A P`` [N, n] (or ``A P B^T`` [N, M]) with the convention ``0 * inf = 0``.
 
     Entries of ``P`` may be ``inf``; a product term counts only where its
     weights are positive, and any such term with ``P = inf`` makes the result
-    ``inf``. ``A`` [N, n] and ``B`` [M, n] hold non-negative weights.
+    ``inf``. ``A`` [N, n] and ``B`` [M, n] hold non-negative weights. ``split``
+    is ``split_unreachable(P)`` if the caller has it cached.
     """
-    unreachable = np.isinf(P)
-    Pf = np.where(unreachable, 0.0, P)
-    Ui = unreachable.astype(np.float64)
+    Pf, Ui = split_unreachable(P) if split is None else split
     if B is None:
         out = A @ Pf
         hits = (A > 0).astype(np.float64) @ Ui
@@ -243,11 +254,19 @@ class GraphDistance(BasisGraphDistance):
         self.sigma_se = check_positive(sigma_se, "sigma_se")
         self.normalize = bool(normalize)
         self.attach = bool(attach)
+        self._split_cache: tuple[int, tuple[FloatArray, FloatArray]] | None = None
 
     @property
     def _P(self) -> FloatArray:
         n = self.graph.n_nodes
         return self.graph._P[:n, :n]
+
+    def _split(self) -> tuple[FloatArray, FloatArray]:
+        """``split_unreachable(P)``, cached until the graph changes (eq. 5 is O(n^2) otherwise)."""
+        version = self.graph.version
+        if self._split_cache is None or self._split_cache[0] != version:
+            self._split_cache = (version, split_unreachable(self._P))
+        return self._split_cache[1]
 
     # -- shortest paths -------------------------------------------------------------------
     def interpolation_weights(self, X: FloatArray) -> FloatArray:
@@ -284,7 +303,7 @@ class GraphDistance(BasisGraphDistance):
         if self.method == "nearest":
             return pendant_distances(self.graph, self._P, X)
         W, cost = self._weights_and_costs(X)
-        return weighted_paths(W, self._P) + cost[:, None]
+        return weighted_paths(W, self._P, split=self._split()) + cost[:, None]
 
     def shortest_path(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         """``SP(x, y)`` [N, M] for arbitrary points (module docstring); symmetric, 0 if x == y."""
@@ -295,7 +314,7 @@ class GraphDistance(BasisGraphDistance):
             return _empty_graph_distances(g, X, Y)
         Wx, cx = self._weights_and_costs(X)
         Wy, cy = (Wx, cx) if Y is X else self._weights_and_costs(Y)
-        D = weighted_paths(Wx, self._P, Wy)
+        D = weighted_paths(Wx, self._P, Wy, split=self._split())
         if self.attach:  # sum_{l,m} wx_l wy_m (cx_l + cy_m) = cx sum(wy) + sum(wx) cy
             D += cx[:, None] * Wy.sum(axis=1)[None, :] + Wx.sum(axis=1)[:, None] * cy[None, :]
         if Y is X:

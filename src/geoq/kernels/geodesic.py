@@ -25,7 +25,7 @@ graph's edge-weight function: ``||.||^2`` by default, ``||.||`` with
   (the limit of the normalised weights), i.e. ``SP(x*, x_j) -> P[a(x*), j]``.
   Unnormalised weights vanish far from the nodes, so there ``SP -> 0`` and
   ``k -> amplitude``: that is eq. 5 as published.
-* **Eq. 5 stalls the sparse GP** (measured, ``tests/gp/test_geodesic_gp.py``):
+* **Eq. 5 stalls the sparse GP** (measured, ``tests/integration/test_geodesic_gp.py``):
   with one node, ``P = [[0]]`` so ``SP(x*, x_0) = 0`` and ``k(x*, x_0) = A`` for
   *every* ``x*``; the novelty of every later point is exactly 0 and the BV set
   never grows past its first point. ``attach=True`` (beyond the paper, off by

@@ -264,3 +264,18 @@ def test_fit_is_deterministic_and_resets() -> None:
     m2 = gp.fit(X, y).predict(X[:50])
     np.testing.assert_array_equal(m1, m2)
     assert gp.diagnostics.n_seen == 200
+
+
+@pytest.mark.parametrize("noise", [1e-4, 0.1])
+def test_predict_routes_agree(noise: float) -> None:
+    """Many test points go through one GEMM (factored route); few through solves."""
+    X, y = _data(8, 400)
+    gp = SparseOnlineGP(SquaredExponential(0.4), noise=noise, max_bv=40, tol=1e-4).fit(X, y)
+    Xs = np.random.default_rng(9).uniform(-3, 3, (2000, 2))  # >= 8 per BV: factored
+    mean, std = gp.predict(Xs, return_std=True)
+    parts = [gp.predict(Xs[lo : lo + 100], return_std=True) for lo in range(0, 2000, 100)]
+    mean_s = np.concatenate([p[0] for p in parts])
+    std_s = np.concatenate([p[1] for p in parts])
+    np.testing.assert_allclose(mean, mean_s, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(std**2, std_s**2, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(gp.predict(Xs), mean)

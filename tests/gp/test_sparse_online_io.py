@@ -265,6 +265,7 @@ def test_version_1_files_still_load(tmp_path: Path) -> None:
     def to_v1(a: dict[str, object]) -> None:
         _header(1)(a)
         a["counters"] = np.asarray(a["counters"])[:8]
+        del a["extra.covariance_projections"]
 
     _rewrite(path, old, to_v1)
     loaded = SparseOnlineGP.load(old)
@@ -293,3 +294,20 @@ def test_save_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None
         monkeypatch.setattr(geoq._io.os, "fsync", boom)
         gp.save(tmp_path / "new.npz")
     assert not (tmp_path / "new.npz").exists()
+
+
+def test_version_2_files_still_load(tmp_path: Path) -> None:
+    """Format 2 had no ``covariance_projections`` counter; it loads with it at 0."""
+    gp, X = _fitted()
+    path = tmp_path / "model.npz"
+    gp.save(path)
+    old = tmp_path / "v2.npz"
+
+    def to_v2(a: dict[str, object]) -> None:
+        _header(2)(a)
+        del a["extra.covariance_projections"]
+
+    _rewrite(path, old, to_v2)
+    loaded = SparseOnlineGP.load(old)
+    assert loaded.diagnostics.covariance_projections == 0
+    np.testing.assert_array_equal(loaded.predict(X), gp.predict(X))

@@ -129,6 +129,8 @@ def check_predictions(gp: SparseOnlineGP, X: np.ndarray) -> tuple[np.ndarray, np
     assert mean.shape == std.shape == (X.shape[0],)
     assert np.all(np.isfinite(mean))
     assert np.all(np.isfinite(std)) and np.all(std >= 0.0)
+    # The posterior is never wider than the prior (0 <= S <= I, also after re-anchoring).
+    assert np.all(std**2 <= gp.kernel.diag(X) * (1.0 + 1e-9))
     return mean, std
 
 
@@ -176,10 +178,12 @@ def resistance_current(data, tmp_path_factory) -> tuple[Path, list[warnings.Warn
 def test_resistance_kernel_needs_no_repairs_when_gram_is_kept_current(resistance_current, data):
     """PD kernel + a factor re-anchored after every BV change: novelty never negative.
 
-    With the default resync interval the stored factor of ``K_BV`` goes stale as
+    With a longer resync interval the stored factor of ``K_BV`` goes stale as
     the graph grows (every added node changes resistances between old nodes),
     and the novelty computed from it is negative for most points even for this
-    PD kernel; re-anchoring after each change removes every repair.
+    PD kernel; re-anchoring after each change (the default for basis-tracking
+    kernels) removes every repair. Re-anchoring may still project the posterior
+    back under the new prior (``covariance_projections``): staleness, not a repair.
     """
     path, caught = resistance_current
     gp = SparseOnlineGP.load(path)
@@ -346,9 +350,22 @@ def _bad_method(a: dict[str, np.ndarray]) -> None:
     a["kernel.distance.method"] = np.asarray("farthest")
 
 
+def _basis_not_nodes(a: dict[str, np.ndarray]) -> None:
+    """A consistent graph, but the GP's BV rows no longer are its nodes (in order)."""
+    a["basis_vectors"] = a["basis_vectors"][::-1].copy()
+
+
 @pytest.mark.parametrize(
     "change",
-    [_nan_path, _asymmetric_path, _negative_weight, _fewer_nodes, _drop_entry, _bad_method],
+    [
+        _nan_path,
+        _asymmetric_path,
+        _negative_weight,
+        _fewer_nodes,
+        _drop_entry,
+        _bad_method,
+        _basis_not_nodes,
+    ],
 )
 def test_tampered_graph_raises_a_clear_error(saved_model, tmp_path, change):
     bad = rewrite(saved_model, tmp_path / "tampered.npz", change)

@@ -126,6 +126,22 @@ def _backward(R: FloatArray, rhs: FloatArray, m: int, out: FloatArray) -> None: 
         out[a] = (rhs[a] - _dot_row(R, a, out, a + 1, m)) / R[a, a]
 
 
+@njit(cache=True, fastmath=True)
+def _backward2(  # pragma: no cover - compiled
+    R: FloatArray, rhs1: FloatArray, rhs2: FloatArray, m: int, out1: FloatArray, out2: FloatArray
+) -> None:
+    """Two back substitutions ``R out1 = rhs1``, ``R out2 = rhs2`` in one pass over ``R``."""
+    for a in range(m - 1, -1, -1):
+        acc1 = 0.0
+        acc2 = 0.0
+        for j in range(a + 1, m):
+            r = R[a, j]
+            acc1 += r * out1[j]
+            acc2 += r * out2[j]
+        out1[a] = (rhs1[a] - acc1) / R[a, a]
+        out2[a] = (rhs2[a] - acc2) / R[a, a]
+
+
 @njit(cache=True)
 def _delete_cholesky(  # pragma: no cover - compiled
     R: FloatArray, i: int, m: int, x: FloatArray, cth: FloatArray, sth: FloatArray
@@ -178,7 +194,7 @@ def _rotate_rows(  # pragma: no cover - compiled
 def _delete_whitened(  # pragma: no cover - compiled
     S: FloatArray,
     mu: FloatArray,
-    T: FloatArray,
+    sig: FloatArray,
     i: int,
     m: int,
     cth: FloatArray,
@@ -191,29 +207,31 @@ def _delete_whitened(  # pragma: no cover - compiled
     :func:`_delete_cholesky`: in the rotated coordinates BV ``i`` is the *last* in
     Cholesky order and no other BV depends on coordinate ``i``. The KL-optimal
     downdates (TR eq. 3.23-3.25), written in these coordinates, are conditioning
-    on ``u_i = 0``: with ``sig = S[:, i]`` and ``vs = S[i, i]``::
+    on ``u_i = 0``: with ``sig = (G^T S G)[:, i]`` and ``vs = sig[i]``::
 
         mu <- mu_rest - sig mu_i / vs,    S <- S_rest - sig sig^T / vs
 
-    ``G^T S G = G^T (G^T S)^T`` (``S`` symmetric), so both sides are row rotations:
-    on ``S`` and on a transposed copy in ``T`` [cap, cap].
+    Two passes over ``S``: the row rotations ``A = G^T S`` (rows ``>= i``), then,
+    row by row, the column rotations ``A G`` of the *lower* triangle only (a carry
+    recurrence along the row), fused with the conditioning and the compaction of
+    row/column ``i``; the upper triangle is then mirrored, so ``S`` stays exactly
+    symmetric. ``sig`` [cap] is scratch.
     """
     for j in range(i + 1, m):
         t = mu[j]
         mu[j] = cth[j] * t + sth[j] * mu[i]
         mu[i] = cth[j] * mu[i] - sth[j] * t
     _rotate_rows(S, i, m, m, cth, sth)  # A = G^T S: rows >= i change
-    for a in range(m):  # T[j, a] = A[a, j] for j >= i
-        for j in range(i, m):
-            T[j, a] = S[a, j]
-    _rotate_rows(T, i, m, m, cth, sth)  # rows >= i of G^T A^T = G^T S G
-    for a in range(i + 1, m):  # symmetric trailing block, exactly
-        for b in range(i + 1, a):
-            h = 0.5 * (T[a, b] + T[b, a])
-            T[a, b] = h
-            T[b, a] = h
-    sig = T[i]  # row i of G^T S G (not overwritten below)
-    vs = T[i, i]
+    # sig = row i of A G: columns < i as they are, columns > i by the carry recurrence.
+    for b in range(i):
+        sig[b] = S[i, b]
+    x = S[i, i]
+    for j in range(i + 1, m):
+        t = S[i, j]
+        sig[j] = cth[j] * t + sth[j] * x
+        x = cth[j] * x - sth[j] * t
+    sig[i] = x
+    vs = x
     if vs > _PINNED:
         iv = 1.0 / vs
         fm = mu[i] * iv
@@ -227,18 +245,35 @@ def _delete_whitened(  # pragma: no cover - compiled
             mu[a] -= sig[a] * fm
     for j in range(i + 1, m):
         mu[j - 1] = mu[j]
+    # Lower triangle of the result, compacted in place (row a > i moves to a - 1 after
+    # row a - 1 has been consumed).
     for a in range(i):
-        sa = sig[a]
-        for b in range(i):
-            S[a, b] = S[a, b] - (sa * sig[b]) * iv
-        for b in range(i + 1, m):
-            S[a, b - 1] = T[b, a] - (sa * sig[b]) * iv
+        sa = sig[a] * iv
+        for b in range(a + 1):
+            S[a, b] -= sa * sig[b]
     for a in range(i + 1, m):
-        sa = sig[a]
+        sa = sig[a] * iv
         for b in range(i):
-            S[a - 1, b] = T[a, b] - (sa * sig[b]) * iv
-        for b in range(i + 1, m):
-            S[a - 1, b - 1] = T[a, b] - (sa * sig[b]) * iv
+            S[a - 1, b] = S[a, b] - sa * sig[b]
+        x = S[a, i]
+        for j in range(i + 1, a + 1):  # columns > a are not needed (upper triangle)
+            t = S[a, j]
+            S[a - 1, j - 1] = (cth[j] * t + sth[j] * x) - sa * sig[j]
+            x = cth[j] * x - sth[j] * t
+    _mirror_lower(S, m - 1)
+
+
+@njit(cache=True)
+def _mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
+    """Copy the lower triangle of ``S[:n, :n]`` onto its upper triangle (tiled transpose)."""
+    bs = 32
+    for a0 in range(0, n, bs):
+        a1 = min(a0 + bs, n)
+        for b0 in range(0, a0 + 1, bs):
+            b1 = min(b0 + bs, n)
+            for a in range(a0, a1):
+                for b in range(b0, min(b1, a)):
+                    S[b, a] = S[a, b]
 
 
 @njit(cache=True)
@@ -358,10 +393,9 @@ def online_step(  # pragma: no cover - compiled
     q = (y - mean) / den
     r = -1.0 / den
     sg = np.sqrt(gamma)
-    _backward(R, v, m, e)  # e_hat = Q k
     for a in range(m):
         z[a] = g[a] - v[a]
-    _backward(R, z, m, s)  # s = C k = R^{-1} (S - I) v
+    _backward2(R, v, z, m, e, s)  # e_hat = Q k = R^{-1} v; s = C k = R^{-1} (S - I) v
     for a in range(m):
         R[a, m] = v[a]
         R[m, a] = 0.0
@@ -423,7 +457,7 @@ def online_step(  # pragma: no cover - compiled
         alpha[a2] = alpha[a] - f * w[a]
         mdiag[a2] = mdiag[a] - (w[a] * w[a]) * iw
     _delete_cholesky(R, i, m1, z, cth, sth)
-    _delete_whitened(S, mu, T, i, m1, cth, sth, counters)
+    _delete_whitened(S, mu, T[0], i, m1, cth, sth, counters)
     for a in range(i + 1, m1):
         BV[a - 1, :] = BV[a, :]
     counters[_DELETED] += 1

@@ -82,9 +82,12 @@ from geoq.kernels.stationary import SquaredExponential
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
 
 _FORMAT_KIND = "SparseOnlineGP"
-_FORMAT_VERSION = 2  # 2: counter "noise_floored" added (version 1 files still load)
+#: 2: counter "noise_floored"; 3: counter "covariance_projections" (older files still load)
+_FORMAT_VERSION = 3
 _N_COUNTERS_V1 = 8
 _PREDICT_CHUNK = 4096
+#: ``predict`` on at least this many points per BV uses the factored route (one GEMM).
+_FACTOR_ROUTE_MIN = 8
 #: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
 #: it is clipped to 0 silently; below that it is clipped *and* counted.
 _VAR_ROUNDING = 1e-9
@@ -121,6 +124,11 @@ class OnlineDiagnostics:
     """Factorisations of ``K_BV`` that needed jitter (:func:`~geoq.gp.numerics.safe_cholesky`)."""
     eig_clips: int = 0
     """Eigenvalues of ``K_BV`` clipped when even the maximal jitter failed (indefinite kernel)."""
+    covariance_projections: int = 0
+    """Eigenvalues of the whitened posterior covariance ``S`` projected back onto
+    ``[0, 1]`` after a basis-tracking kernel changed ``K_BV`` under the posterior
+    (see ``SparseOnlineGP._resync_q``): a consequence of staleness, not a repair of
+    an indefinite kernel, so it does not trigger the numerical warning."""
     refits: int = 0
     """Calls of :meth:`SparseOnlineGP.refit`."""
     max_q_drift: float = 0.0
@@ -182,7 +190,8 @@ class SparseOnlineGP:
     tol : relative novelty threshold: ``x`` becomes a BV iff ``gamma >= tol * k(x, x)``.
     resync_every : BV-set changes between exact refreshes of the deletion scores
         (and re-factorisations of ``K_BV`` for basis-tracking kernels); default
-        ``max(64, 2 * max_bv)`` (amortised O(max_bv^2) per change).
+        ``max(64, 2 * max_bv)`` (amortised O(max_bv^2) per change), and 1 for a
+        basis-tracking kernel (O(m^3) per change: its ``K_BV`` changes with its graph).
     config : numerics constants (jitter policy, novelty floor).
 
     Notes
@@ -209,9 +218,12 @@ class SparseOnlineGP:
         self.noise = check_positive(noise, "noise")
         self.max_bv = _check_budget(max_bv)
         self.tol = _check_tol(tol)
-        self.resync_every = (
-            max(64, 2 * self.max_bv) if resync_every is None else _check_budget(resync_every)
-        )
+        if resync_every is None:
+            # A basis-tracking kernel changes K_BV whenever its graph changes: a factor
+            # older than the last change gives novelties far below zero (seen: -1679 for
+            # the positive-definite resistance kernel), so re-factorise at every change.
+            resync_every = 1 if kernel.tracks_basis else max(64, 2 * self.max_bv)
+        self.resync_every = _check_budget(resync_every)
         self.config = config
         self._dim: int | None = kernel.input_dim
         self._reset_state()
@@ -231,7 +243,13 @@ class SparseOnlineGP:
         self._kbuf = np.zeros(cap)
         self._work = np.zeros((N_WORK, cap))
         self._counters = np.zeros(len(COUNTER_NAMES), dtype=np.int64)
-        self._extra = {"q_resyncs": 0, "jitter_events": 0, "eig_clips": 0, "refits": 0}
+        self._extra = {
+            "q_resyncs": 0,
+            "jitter_events": 0,
+            "eig_clips": 0,
+            "covariance_projections": 0,
+            "refits": 0,
+        }
         self._predict_clipped = 0
         self._max_q_drift = 0.0
         self._changes = 0
@@ -469,10 +487,31 @@ class SparseOnlineGP:
             )  # L_new^{-1} L_old with L = R^T: maps old whitened coordinates to new ones
             self._mu[:m] = Tm @ self._mu[:m]
             S = Tm @ self._S[:m, :m] @ Tm.T
-            self._S[:m, :m] = 0.5 * (S + S.T)
+            self._S[:m, :m] = self._valid_whitened_covariance(S)
             self._R[:m, :m] = R_new
         self._refresh_scores()
         self._extra["q_resyncs"] += 1
+
+    def _valid_whitened_covariance(self, S: FloatArray) -> FloatArray:
+        """``S`` [m, m] with its spectrum projected onto ``[0, 1]``.
+
+        Any GP posterior conditioned on data satisfies ``0 <= Sigma_BV <= K_BV``,
+        i.e. ``0 <= S <= I`` in whitened coordinates. Re-anchoring keeps the old
+        posterior of ``f_BV`` under the *new* prior, and when a graph kernel's new
+        ``K_BV`` is nearly singular that posterior is far wider than the prior in
+        some directions (``S`` eigenvalues up to ~1e8 were seen, giving predictive
+        variances 1e8 times the prior). The projection is the nearest valid ``S``
+        in the Frobenius norm; projected eigenvalues are counted in
+        ``diagnostics.covariance_projections``.
+        """
+        S = 0.5 * (S + S.T)
+        w, U = scipy.linalg.eigh(S, check_finite=False)
+        bad = (w < -_VAR_ROUNDING) | (w > 1.0 + _VAR_ROUNDING)
+        if not np.any(bad):
+            return S
+        self._extra["covariance_projections"] += int(np.count_nonzero(bad))
+        S = (U * np.clip(w, 0.0, 1.0)) @ U.T
+        return 0.5 * (S + S.T)
 
     def refit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
         """Projected-process (DTC) posterior on the current BV set with the current kernel.
@@ -534,20 +573,61 @@ class SparseOnlineGP:
         # Contiguous copies: LAPACK on strided views of the [cap, cap] buffers is slow.
         R, S = np.ascontiguousarray(self._R[:m, :m]), np.ascontiguousarray(self._S[:m, :m])
         mu, bv = self._mu[:m], self._bv[:m]
-        for lo in range(0, n, _PREDICT_CHUNK):
-            Xc = Xa[lo : lo + _PREDICT_CHUNK]
-            K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
-            V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
-            mean[lo : lo + len(Xc)] = V.T @ mu
-            if return_std:
-                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
-                var = (prior - np.einsum("ij,ij->j", V, V)) + np.einsum("ij,ij->j", S @ V, V)
-                self._predict_clipped += int(np.count_nonzero(var < -_VAR_ROUNDING * prior))
-                std[lo : lo + len(Xc)] = np.sqrt(np.maximum(var, 0.0))
+        if n >= _FACTOR_ROUTE_MIN * m:
+            self._predict_factored(Xa, R, S, mu, bv, mean, std if return_std else None)
+        else:
+            for lo in range(0, n, _PREDICT_CHUNK):
+                Xc = Xa[lo : lo + _PREDICT_CHUNK]
+                K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
+                V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
+                mean[lo : lo + len(Xc)] = V.T @ mu
+                if return_std:
+                    prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                    var = (prior - np.einsum("ij,ij->j", V, V)) + np.einsum("ij,ij->j", S @ V, V)
+                    self._store_std(var, prior, std[lo : lo + len(Xc)])
         if not return_std:
             return mean
         self._warn_once()
         return mean, std
+
+    def _store_std(self, var: FloatArray, prior: FloatArray, out: FloatArray) -> None:
+        self._predict_clipped += int(np.count_nonzero(var < -_VAR_ROUNDING * prior))
+        out[:] = np.sqrt(np.maximum(var, 0.0))
+
+    def _predict_factored(
+        self,
+        X: FloatArray,
+        R: FloatArray,
+        S: FloatArray,
+        mu: FloatArray,
+        bv: FloatArray,
+        mean: FloatArray,
+        std: FloatArray | None,
+    ) -> None:
+        """Many test points: one GEMM per chunk instead of a triangular solve and a GEMM.
+
+        ``var = k(x,x) - v^T (I - S) v`` with ``v = R^{-T} k_x``; with the eigen-
+        decomposition ``I - S = U diag(lam) U^T`` [m, m] (``lam >= 0`` for a PD kernel)
+        and ``G = R^{-1} U sqrt|lam|``: ``var = k(x,x) - sum_j sign(lam_j) (k_x^T G)_j^2``.
+        Same quantities as the per-chunk solve, O(m^3) set-up, then ``K G`` only.
+        """
+        m = R.shape[0]
+        Rinv = scipy.linalg.solve_triangular(R, np.eye(m), check_finite=False)  # [m, m]
+        alpha = Rinv @ mu  # [m]
+        if std is not None:
+            W = np.eye(m) - S
+            lam, U = scipy.linalg.eigh(0.5 * (W + W.T), check_finite=False)  # [m], [m, m]
+            keep = lam != 0.0
+            G = Rinv @ (U[:, keep] * np.sqrt(np.abs(lam[keep])))  # [m, m']
+            sign = np.sign(lam[keep])  # [m']
+        for lo in range(0, X.shape[0], _PREDICT_CHUNK):
+            Xc = X[lo : lo + _PREDICT_CHUNK]
+            K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
+            mean[lo : lo + len(Xc)] = K @ alpha
+            if std is not None:
+                H = K @ G  # [n_c, m']
+                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                self._store_std(prior - (H * H) @ sign, prior, std[lo : lo + len(Xc)])
 
     # ----------------------------------------------------------- persistence
     def save(self, path: str | PathLike[str]) -> None:
@@ -605,6 +685,10 @@ class SparseOnlineGP:
         if bv.ndim != 2 or bv.shape[0] > gp.max_bv or (dim >= 0 and bv.shape[1] != dim):
             raise ArchiveError(f"{path}: basis_vectors has shape {bv.shape}; corrupt model")
         m = bv.shape[0]
+        if not kernel.follows_basis(bv):
+            raise ArchiveError(
+                f"{path}: the kernel's graph nodes differ from basis_vectors; corrupt model"
+            )
         if dim >= 0:
             gp._dim = dim
             gp._reset_state()
@@ -632,6 +716,8 @@ class SparseOnlineGP:
         gp._changes = int(get("changes", ()))
         gp._warned = bool(get("warned", ()))
         for name in gp._extra:
+            if version < 3 and name == "covariance_projections":
+                continue  # not recorded before version 3
             gp._extra[name] = int(get(f"extra.{name}", ()))
         gp._predict_clipped = int(get("predict_clipped", ()))
         gp._max_q_drift = float(get("max_q_drift", ()))

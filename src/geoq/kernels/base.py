@@ -67,6 +67,10 @@ class Distance(ABC):
     def basis_cleared(self) -> None:  # noqa: B027 - optional hook
         """The GP emptied its basis set."""
 
+    def follows_basis(self, basis: FloatArray) -> bool:
+        """Whether the distance's state matches the basis set ``basis`` [m, d]."""
+        return True
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Configuration and state as plain arrays (for ``.npz`` persistence)."""
         return {}
@@ -132,6 +136,10 @@ class Kernel(ABC):
     def basis_cleared(self) -> None:  # noqa: B027 - optional hook
         """The GP emptied its basis set."""
 
+    def follows_basis(self, basis: FloatArray) -> bool:
+        """Whether the kernel's basis-following state matches ``basis`` [m, d]."""
+        return True
+
     # -- persistence ------------------------------------------------------------------
     @abstractmethod
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -173,6 +181,9 @@ class GaussianOfDistance(Kernel):
 
     def basis_gram(self, basis: FloatArray) -> FloatArray:
         return self.to_basis(basis, basis)
+
+    def follows_basis(self, basis: FloatArray) -> bool:
+        return self.distance.follows_basis(basis)
 
     def basis_added(self, x: FloatArray) -> None:
         self.distance.basis_added(x)

@@ -186,6 +186,9 @@ class BasisGraphDistance(Distance):
         n = g.n_nodes
         return basis.shape[0] == n and (n == 0 or np.array_equal(basis, g._X[:n]))
 
+    def follows_basis(self, basis: FloatArray) -> bool:
+        return self._is_node_set(basis)
+
     def squared_to_basis(self, X: FloatArray, basis: FloatArray) -> FloatArray:
         """``r^2(X, BV)`` [N, m]; BV row ``j`` is node ``j`` when BV == graph nodes.
 

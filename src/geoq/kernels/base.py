@@ -85,6 +85,9 @@ class Kernel(ABC):
     """A covariance function ``k(x, x')`` on ``d``-dimensional inputs."""
 
     tracks_basis: ClassVar[bool] = False
+    #: False for kernels whose Gram matrices can be indefinite (a Gaussian of a graph
+    #: distance); the GP's numerics policy treats them differently where it matters.
+    positive_definite: ClassVar[bool] = True
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

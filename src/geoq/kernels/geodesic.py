@@ -433,8 +433,12 @@ class GeodesicKernel(GraphKernel):
     capacity : initial graph buffer size (grows geometrically).
 
     ``gk.graph`` is the :class:`~geoq.graph.MDPGraph`; its nodes are the GP's
-    basis vectors in the same order. ``tracks_basis`` is True.
+    basis vectors in the same order. ``tracks_basis`` is True;
+    ``positive_definite`` is False (a Gaussian of a graph distance is not PD in
+    general: Feragen et al., CVPR 2015).
     """
+
+    positive_definite = False
 
     def __init__(
         self,

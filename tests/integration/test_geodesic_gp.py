@@ -378,3 +378,39 @@ def test_untampered_rewrite_loads(saved_model, tmp_path):
     """The rewriting helper itself produces loadable files (so the errors above are real)."""
     same = rewrite(saved_model, tmp_path / "same.npz", lambda a: None)
     SparseOnlineGP.load(same)
+
+
+def _brute_force_predict(gp: SparseOnlineGP, X: np.ndarray, repair: bool) -> np.ndarray:
+    """Mean and variance one test point at a time from the whitened state (loops)."""
+    m = gp.n_bv
+    R, mu, S = gp._R[:m, :m], gp._mu[:m], gp._S[:m, :m]  # the model's state, read-only
+    out = np.empty((X.shape[0], 2))
+    for t, x in enumerate(X):
+        kx = gp.kernel(x[None, :], gp.basis_vectors)[0]
+        kxx = gp.kernel.diag(x[None, :])[0]
+        v = np.linalg.solve(R.T, kx)
+        if repair and v @ v > kxx:
+            v *= np.sqrt(kxx / (v @ v))
+        out[t] = v @ mu, max(kxx - v @ v + v @ S @ v, 0.0)
+    return out
+
+
+@pytest.mark.parametrize("name", ["nearest", "interpolated"])
+def test_online_predictions_use_the_repaired_features_until_a_refit(name, data):
+    """Negative novelty at a test point: the update's repair (v scaled onto |v|^2 = k(x, x))."""
+    gp, _ = fit(KERNELS[name](False), data)
+    assert gp.diagnostics.novelty_clipped > 0, "the updates must have repaired some v"
+    X = data.X_test
+    before = gp.diagnostics.novelty_clipped
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        mean, std = gp.predict(X, return_std=True)
+        expected = _brute_force_predict(gp, X, repair=True)
+        np.testing.assert_allclose(mean, expected[:, 0], rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(std**2, expected[:, 1], rtol=1e-7, atol=1e-9)
+        raw = _brute_force_predict(gp, X, repair=False)
+        assert np.any(np.abs(raw[:, 0] - mean) > 1e-6), "some test point must need the repair"
+        assert gp.diagnostics.novelty_clipped > before  # predict-time repairs are counted
+        gp.refit(data.X, data.y)  # the DTC posterior of the raw features
+        mean, std = gp.predict(X, return_std=True)
+        np.testing.assert_allclose(mean, _brute_force_predict(gp, X, False)[:, 0], atol=1e-8)

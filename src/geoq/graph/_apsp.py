@@ -13,6 +13,7 @@ import numpy as np
 from geoq._typing import FloatArray, IntArray
 
 __all__ = [
+    "add_node_paths",
     "affected_sources",
     "delete_node_paths",
     "distances_via_neighbours",
@@ -83,6 +84,44 @@ def relax_through_node(
                 # Row b may be skipped: d[a] + d[b] can undercut an equal-length path
                 # P[a, b] by an ulp (other summation order), so keep P exactly symmetric.
                 P[b, a] = s
+    return touched
+
+
+@numba.njit(cache=True, nogil=True)
+def add_node_paths(
+    P: FloatArray, W: FloatArray, n: int, nbr: IntArray, w: FloatArray, d: FloatArray, via: IntArray
+) -> int:
+    """Append node ``v = n`` linked to ``nbr`` [deg] by weights ``w`` [deg]; update ``W`` and ``P``.
+
+    :func:`distances_via_neighbours`, then :func:`relax_through_node` when some
+    neighbour pair is a shortcut (``w[k1] + w[k2] < P[nbr[k1], nbr[k2]]``), then
+    row and column ``v`` of ``P``. Returns the rows touched by the relaxation.
+    """
+    v = n
+    deg = nbr.shape[0]
+    for j in range(n + 1):
+        W[v, j] = np.inf
+        W[j, v] = np.inf
+    for k in range(deg):
+        W[v, nbr[k]] = w[k]
+        W[nbr[k], v] = w[k]
+    distances_via_neighbours(P, n, nbr, w, d, via)
+    touched = 0
+    if deg >= 2:
+        shortcut = np.zeros((deg, deg), dtype=np.bool_)
+        anything = False
+        for k1 in range(deg):
+            row = P[nbr[k1]]
+            for k2 in range(deg):
+                if w[k1] + w[k2] < row[nbr[k2]]:
+                    shortcut[k1, k2] = True
+                    anything = True
+        if anything:
+            touched = relax_through_node(P, n, d, via, shortcut)
+    for j in range(n):
+        P[v, j] = d[j]
+        P[j, v] = d[j]
+    P[v, v] = 0.0
     return touched
 
 
@@ -172,8 +211,16 @@ def _heap_pop(keys: FloatArray, vals: IntArray, size: int) -> int:
     return size
 
 
+#: ``delete_node_paths`` solves each source on the dense weights (no adjacency
+#: lists, no heap) when the graph has at least this many edge entries per
+#: ``n^2`` (measured on the geodesic-GP fit and ``benchmarks/bench_graph.py``).
+DENSE_DELETE_FILL = 0.15
+
+
 @numba.njit(cache=True, nogil=True)
-def delete_node_paths(P: FloatArray, W: FloatArray, n: int, v: int, rtol: float) -> int:
+def delete_node_paths(
+    P: FloatArray, W: FloatArray, n: int, v: int, rtol: float, dense: int = -1
+) -> int:
     """Update ``P`` [n, n] in place for the deletion of node ``v``; returns the sources updated.
 
     Row and column ``v`` are left as they are (the caller drops them). For each
@@ -186,8 +233,76 @@ def delete_node_paths(P: FloatArray, W: FloatArray, n: int, v: int, rtol: float)
     the test sums the same two numbers), so both entries of a pair are recomputed
     and the smaller one is written to both: ``P`` stays exactly symmetric.
     ``W`` [n, n] holds the edge weights (``inf`` = no edge).
+
+    ``dense``: 1 = the restricted Dijkstra scans the dense rows of ``W`` (O(|T_a| n)
+    seeds, O(|T_a|^2) selection, no heap), 0 = adjacency lists and a binary heap,
+    -1 = dense when at least ``DENSE_DELETE_FILL`` of ``W`` is edges. Both compute
+    ``min`` over the same sums ``d(u) + w(u, b)``: the results are bit-identical.
     """
-    # CSR adjacency of the graph without v
+    pv = P[v, :n].copy()
+    in_t = np.zeros(n, dtype=np.bool_)
+    members = np.empty(n, dtype=np.int64)
+    d = np.empty(n)
+    use_dense = dense == 1
+    if dense < 0:
+        nnz = 0
+        for i in range(n):
+            row = W[i]
+            for j in range(n):
+                if row[j] < np.inf:
+                    nnz += 1
+        use_dense = nnz >= DENSE_DELETE_FILL * n * n
+    if use_dense:
+        indptr = np.zeros(1, dtype=np.int64)
+        indices = np.empty(0, dtype=np.int64)
+        data = np.empty(0)
+        rowmask = np.empty(n)
+    else:
+        indptr, indices, data = _csr_without(W, n, v)
+        rowmask = np.empty(0)
+    nnz_v = indptr[-1]
+    done = np.zeros(n, dtype=np.bool_)
+    hkeys = np.empty(nnz_v + n + 1)
+    hvals = np.empty(nnz_v + n + 1, dtype=np.int64)
+    updated = 0
+    for a in range(n):
+        pav = pv[a]
+        if a == v or pav == np.inf:
+            continue
+        row = P[a]
+        m = 0
+        for b in range(n):
+            pvb = pv[b]
+            if b == v or b == a or pvb == np.inf:
+                continue
+            if pav + pvb <= row[b] * (1.0 + rtol):
+                in_t[b] = True
+                members[m] = b
+                m += 1
+        if m == 0:
+            continue
+        updated += 1
+        if use_dense:
+            _restricted_dijkstra_dense(W, n, v, row, in_t, members, m, d, rowmask)
+        else:
+            _restricted_dijkstra_heap(
+                indptr, indices, data, row, in_t, done, members, m, d, hkeys, hvals
+            )
+        for k in range(m):
+            b = members[k]
+            db = d[b]
+            if b < a:  # row b was recomputed already and holds its new P[b, a]
+                if P[b, a] < db:
+                    db = P[b, a]
+                P[b, a] = db
+            row[b] = db
+            in_t[b] = False
+    return updated
+
+
+@numba.njit(cache=True, nogil=True)
+def _csr_without(W: FloatArray, n: int, v: int) -> tuple[IntArray, IntArray, FloatArray]:
+    """CSR adjacency ``(indptr, indices, data)`` of ``W[:n, :n]`` without node ``v``."""
     indptr = np.zeros(n + 1, dtype=np.int64)
     for i in range(n):
         c = 0
@@ -210,69 +325,131 @@ def delete_node_paths(P: FloatArray, W: FloatArray, n: int, v: int, rtol: float)
                 indices[e] = j
                 data[e] = row[j]
                 e += 1
-    in_t = np.zeros(n, dtype=np.bool_)
-    done = np.zeros(n, dtype=np.bool_)
-    members = np.empty(n, dtype=np.int64)
-    d = np.empty(n)
-    hkeys = np.empty(nnz + n + 1)
-    hvals = np.empty(nnz + n + 1, dtype=np.int64)
-    pv = P[v].copy()
-    updated = 0
-    for a in range(n):
-        pav = pv[a]
-        if a == v or pav == np.inf:
+    return indptr, indices, data
+
+
+@numba.njit(cache=True, nogil=True)
+def _restricted_dijkstra_heap(
+    indptr: IntArray,
+    indices: IntArray,
+    data: FloatArray,
+    row: FloatArray,
+    in_t: np.ndarray,
+    done: np.ndarray,
+    members: IntArray,
+    m: int,
+    d: FloatArray,
+    hkeys: FloatArray,
+    hvals: IntArray,
+) -> None:
+    """``d[members[:m]]`` = distances from the source of ``row`` within ``T`` (adjacency lists)."""
+    size = 0
+    for k in range(m):  # seeds: last edge from outside T_a (distances there are final)
+        b = members[k]
+        best = np.inf
+        for e in range(indptr[b], indptr[b + 1]):
+            u = indices[e]
+            if not in_t[u]:
+                c = row[u] + data[e]
+                if c < best:
+                    best = c
+        d[b] = best
+        if best < np.inf:
+            size = _heap_push(hkeys, hvals, size, best, b)
+    while size > 0:
+        key = hkeys[0]
+        b = hvals[0]
+        size = _heap_pop(hkeys, hvals, size)
+        if done[b] or key > d[b]:
             continue
-        row = P[a]
-        m = 0
-        for b in range(n):
-            pvb = pv[b]
-            if b == v or b == a or pvb == np.inf:
-                continue
-            if pav + pvb <= row[b] * (1.0 + rtol):
-                in_t[b] = True
-                members[m] = b
-                m += 1
-        if m == 0:
-            continue
-        updated += 1
-        size = 0
-        for k in range(m):  # seeds: last edge from outside T_a (distances there are final)
-            b = members[k]
-            best = np.inf
-            for e in range(indptr[b], indptr[b + 1]):
-                u = indices[e]
-                if not in_t[u]:
-                    c = row[u] + data[e]
-                    if c < best:
-                        best = c
-            d[b] = best
-            if best < np.inf:
-                size = _heap_push(hkeys, hvals, size, best, b)
-        while size > 0:
-            key = hkeys[0]
-            b = hvals[0]
-            size = _heap_pop(hkeys, hvals, size)
-            if done[b] or key > d[b]:
-                continue
-            done[b] = True
-            for e in range(indptr[b], indptr[b + 1]):
-                c = indices[e]
-                if in_t[c] and not done[c]:
-                    nd = key + data[e]
-                    if nd < d[c]:
-                        d[c] = nd
-                        size = _heap_push(hkeys, hvals, size, nd, c)
-        for k in range(m):
-            b = members[k]
-            db = d[b]
-            if b < a:  # row b was recomputed already and holds its new P[b, a]
-                if P[b, a] < db:
-                    db = P[b, a]
-                P[b, a] = db
-            row[b] = db
-            in_t[b] = False
-            done[b] = False
-    return updated
+        done[b] = True
+        for e in range(indptr[b], indptr[b + 1]):
+            c = indices[e]
+            if in_t[c] and not done[c]:
+                nd = key + data[e]
+                if nd < d[c]:
+                    d[c] = nd
+                    size = _heap_push(hkeys, hvals, size, nd, c)
+    for k in range(m):
+        done[members[k]] = False
+
+
+@numba.njit(cache=True, nogil=True)
+def _restricted_dijkstra_dense(
+    W: FloatArray,
+    n: int,
+    v: int,
+    row: FloatArray,
+    in_t: np.ndarray,
+    members: IntArray,
+    m: int,
+    d: FloatArray,
+    rowmask: FloatArray,
+) -> None:
+    """As :func:`_restricted_dijkstra_heap` on the dense weights; permutes ``members[:m]``.
+
+    ``W[b, u] = inf`` where there is no edge, so scanning every ``u`` adds only
+    ``inf`` candidates; ``rowmask`` hides ``T`` and ``v`` (the final distances
+    outside ``T`` are the seeds' only sources).
+    """
+    for u in range(n):
+        rowmask[u] = np.inf if in_t[u] else row[u]
+    rowmask[v] = np.inf
+    key = np.inf
+    kbest = -1
+    for k in range(m):
+        b = members[k]
+        d[b] = _min_of_sums(rowmask, W[b], n)
+        if d[b] < key:
+            key = d[b]
+            kbest = k
+    left = m  # members[:left] are not final; each pass finalises the smallest
+    while kbest >= 0:
+        b = members[kbest]
+        left -= 1
+        members[kbest] = members[left]
+        members[left] = b
+        Wb = W[b]
+        key_next = np.inf
+        kbest = -1
+        for k in range(left):
+            c = members[k]
+            nd = key + Wb[c]
+            dc = d[c]
+            if nd < dc:
+                dc = nd
+                d[c] = nd
+            if dc < key_next:
+                key_next = dc
+                kbest = k
+        key = key_next
+
+
+@numba.njit(cache=True, nogil=True)
+def _min_of_sums(x: FloatArray, y: FloatArray, n: int) -> float:
+    """``min_u x[u] + y[u]``; four running minima (the minimum of exact sums is order-free)."""
+    b0 = b1 = b2 = b3 = np.inf
+    u = 0
+    while u + 4 <= n:
+        c0 = x[u] + y[u]
+        c1 = x[u + 1] + y[u + 1]
+        c2 = x[u + 2] + y[u + 2]
+        c3 = x[u + 3] + y[u + 3]
+        if c0 < b0:
+            b0 = c0
+        if c1 < b1:
+            b1 = c1
+        if c2 < b2:
+            b2 = c2
+        if c3 < b3:
+            b3 = c3
+        u += 4
+    while u < n:
+        c0 = x[u] + y[u]
+        if c0 < b0:
+            b0 = c0
+        u += 1
+    return min(min(b0, b1), min(b2, b3))
 
 
 @numba.njit(cache=True, nogil=True)

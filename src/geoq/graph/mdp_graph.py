@@ -19,7 +19,9 @@ what Dijkstra gives on the current graph after every change:
   (:func:`geoq.graph._apsp.delete_node_paths`): the work is about the
   betweenness of ``v`` times the degree, not one full Dijkstra per affected
   source (``benchmarks/bench_graph.py`` compares it with
-  ``scipy.sparse.csgraph.dijkstra(indices=affected)``).
+  ``scipy.sparse.csgraph.dijkstra(indices=affected)``). On graphs with many
+  edges per node (``DENSE_DELETE_FILL``) the restricted Dijkstra scans dense
+  weight rows instead of adjacency lists and a heap, with bit-identical results.
 
 Options beyond the paper, all off by default:
 
@@ -56,11 +58,10 @@ from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
 from geoq.graph._apsp import (
     DELETE_RTOL,
+    add_node_paths,
     delete_node_paths,
-    distances_via_neighbours,
     drop_index,
     insert_edge,
-    relax_through_node,
     wrapped_squared_distances,
 )
 
@@ -300,28 +301,11 @@ class MDPGraph:
             prev = self._temporal_neighbour(v, self._rollout, before=True)
             if prev >= 0:
                 link[prev] = True
-        nbr = np.flatnonzero(link).astype(np.int64)
-        wn = np.ascontiguousarray(w[nbr])
+        nbr = np.flatnonzero(link).astype(np.int64, copy=False)
+        wn = w[nbr]
         self._X[v] = xa
         self._ids[v] = self._rollout
-        self._W[v, :n] = np.inf
-        self._W[:n, v] = np.inf
-        self._W[v, nbr] = wn
-        self._W[nbr, v] = wn
-        self._W[v, v] = np.inf
-        d, via = self._d, self._via
-        distances_via_neighbours(self._P, n, nbr, wn, d, via)
-        if nbr.shape[0] >= 2:
-            Pn = self._P[np.ix_(nbr, nbr)]
-            shortcut = (wn[:, None] + wn[None, :]) < Pn
-            self.last_add_rows = (
-                int(relax_through_node(self._P, n, d, via, shortcut)) if shortcut.any() else 0
-            )
-        else:
-            self.last_add_rows = 0
-        self._P[v, :n] = d[:n]
-        self._P[:n, v] = d[:n]
-        self._P[v, v] = 0.0
+        self.last_add_rows = int(add_node_paths(self._P, self._W, n, nbr, wn, self._d, self._via))
         self._n = n + 1
         self._changed()
         return v

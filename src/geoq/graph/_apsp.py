@@ -20,6 +20,8 @@ __all__ = [
     "drop_index",
     "insert_edge",
     "relax_through_node",
+    "rows_equal",
+    "squares_over",
     "wrapped_squared_distances",
 ]
 
@@ -492,3 +494,30 @@ def wrapped_squared_distances(X: FloatArray, Y: FloatArray, period: FloatArray) 
                 s += diff * diff
             out[i, j] = s
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def squares_over(X: FloatArray, s: float) -> FloatArray:
+    """``X * X / s`` [N, M] elementwise, without floating-point warnings (overflow -> inf).
+
+    Bit-identical to numpy's ``X * X / s`` (two correctly rounded operations).
+    """
+    N, M = X.shape
+    out = np.empty((N, M))
+    for i in range(N):
+        for j in range(M):
+            x = X[i, j]
+            out[i, j] = x * x / s
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def rows_equal(A: FloatArray, B: FloatArray, n: int) -> bool:
+    """``np.array_equal(A, B[:n])`` for 2-D float arrays (NaN never equals)."""
+    if A.shape[0] != n or A.shape[1] != B.shape[1]:
+        return False
+    for i in range(n):
+        for j in range(A.shape[1]):
+            if A[i, j] != B[i, j]:
+                return False
+    return True

@@ -65,6 +65,7 @@ import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, check_positive
+from geoq.graph._apsp import rows_equal, squares_over
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
 from geoq.kernels.base import Distance, GaussianOfDistance, Kernel
 
@@ -109,13 +110,23 @@ def weighted_paths(
     is ``split_unreachable(P)`` if the caller has it cached.
     """
     Pf, Ui = split_unreachable(P) if split is None else split
+    return _weighted_paths(A, Pf, Ui, B, True)
+
+
+def _weighted_paths(
+    A: FloatArray, Pf: FloatArray, Ui: FloatArray, B: FloatArray | None, unreachable: bool
+) -> FloatArray:
+    """:func:`weighted_paths` on a split ``P``; ``unreachable=False`` promises ``Ui == 0``."""
     if B is None:
         out = A @ Pf
-        hits = (A > 0).astype(np.float64) @ Ui
+        if unreachable:
+            hits = (A > 0).astype(np.float64) @ Ui
+            out[hits > 0] = np.inf
     else:
         out = (A @ Pf) @ B.T
-        hits = ((A > 0).astype(np.float64) @ Ui) @ (B > 0).astype(np.float64).T
-    out[hits > 0] = np.inf
+        if unreachable:
+            hits = ((A > 0).astype(np.float64) @ Ui) @ (B > 0).astype(np.float64).T
+            out[hits > 0] = np.inf
     return out
 
 
@@ -133,6 +144,10 @@ def pendant_distances(
     n = graph.n_nodes
     if n == 0:
         return _empty_graph_distances(graph, X, Y)
+    if Y is None and X.shape[0] == 1:  # the GP's per-point path: same sums, less overhead
+        r2 = graph.squared_distances_to_nodes(X)[0]
+        i = int(r2.argmin())  # graph.nearest's choice (lowest index among ties)
+        return graph.weight_of(r2[i : i + 1])[:, None] + M[i : i + 1, :]
     ax, r2x = graph.nearest(X)
     cx = graph.weight_of(r2x)
     if Y is None:
@@ -184,7 +199,16 @@ class BasisGraphDistance(Distance):
     def _is_node_set(self, basis: FloatArray) -> bool:
         g = self.graph
         n = g.n_nodes
-        return basis.shape[0] == n and (n == 0 or np.array_equal(basis, g._X[:n]))
+        if basis.shape[0] != n:
+            return False
+        if n == 0:
+            return True
+        nodes = g._X[:n]
+        if basis.shape != nodes.shape:
+            return False
+        if basis.dtype == np.float64 and basis.ndim == 2:
+            return bool(rows_equal(basis, g._X, n))  # np.array_equal without its overhead
+        return bool(np.array_equal(basis, nodes))
 
     def follows_basis(self, basis: FloatArray) -> bool:
         return self._is_node_set(basis)
@@ -257,19 +281,26 @@ class GraphDistance(BasisGraphDistance):
         self.sigma_se = check_positive(sigma_se, "sigma_se")
         self.normalize = bool(normalize)
         self.attach = bool(attach)
-        self._split_cache: tuple[int, tuple[FloatArray, FloatArray]] | None = None
+        self._split_cache: tuple[int, FloatArray, FloatArray, bool] | None = None
 
     @property
     def _P(self) -> FloatArray:
         n = self.graph.n_nodes
         return self.graph._P[:n, :n]
 
-    def _split(self) -> tuple[FloatArray, FloatArray]:
-        """``split_unreachable(P)``, cached until the graph changes (eq. 5 is O(n^2) otherwise)."""
-        version = self.graph.version
-        if self._split_cache is None or self._split_cache[0] != version:
-            self._split_cache = (version, split_unreachable(self._P))
-        return self._split_cache[1]
+    def _split(self) -> tuple[FloatArray, FloatArray, bool]:
+        """``split_unreachable(P)`` and whether any pair is unreachable, cached until the
+        graph changes (eq. 5 is O(n^2) otherwise)."""
+        cache = self._split_cache
+        if cache is None or cache[0] != self.graph.version:
+            P = self._P
+            if np.isinf(P).any():
+                Pf, Ui = split_unreachable(P)
+                cache = (self.graph.version, Pf, Ui, True)
+            else:  # connected: P itself, and no indicator is needed
+                cache = (self.graph.version, P.copy(), np.zeros((0, 0)), False)
+            self._split_cache = cache
+        return cache[1], cache[2], cache[3]
 
     # -- shortest paths -------------------------------------------------------------------
     def interpolation_weights(self, X: FloatArray) -> FloatArray:
@@ -279,21 +310,22 @@ class GraphDistance(BasisGraphDistance):
     def _weights_and_costs(self, X: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Eq. 5 weights [N, n] and, with ``attach``, ``sum_i weight_i w(x - x_i)`` [N]."""
         r2 = self.graph.squared_distances_to_nodes(X)
-        if r2.shape[1] == 0:
-            return r2, np.zeros(r2.shape[0])
-        z = r2 / (2.0 * self.sigma_se)
-        rel = z - z.min(axis=1, keepdims=True)  # -log(weight / largest weight of the row)
-        if self.normalize:
-            W = np.exp(-rel)
+        N, n = r2.shape
+        if n == 0:
+            return r2, np.zeros(N)
+        if N == 1:  # the GP's per-point path: same operations, less overhead
+            i = int(r2[0].argmin())
+            if r2[0, i] == 0.0:  # on node i: e_i
+                W = np.zeros((1, n))
+                W[0, i] = 1.0
+            else:
+                W = self._weights_off_nodes(r2, i)
         else:
-            W = np.exp(-z)
-        W[rel > _NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
-        if self.normalize:
-            W /= W.sum(axis=1, keepdims=True)
-        on_node = np.flatnonzero(r2.min(axis=1) == 0.0)
-        if on_node.size:
-            W[on_node] = 0.0
-            W[on_node, np.argmin(r2[on_node], axis=1)] = 1.0
+            W = self._weights_off_nodes(r2, -1)
+            on_node = np.flatnonzero(r2.min(axis=1) == 0.0)
+            if on_node.size:
+                W[on_node] = 0.0
+                W[on_node, np.argmin(r2[on_node], axis=1)] = 1.0
         cost = (
             np.einsum("nk,nk->n", W, self.graph.weight_of(r2))
             if self.attach
@@ -301,12 +333,30 @@ class GraphDistance(BasisGraphDistance):
         )
         return W, cost
 
+    def _weights_off_nodes(self, r2: FloatArray, argmin: int) -> FloatArray:
+        """Eq. 5 weights [N, n] from ``r2`` [N, n], ignoring points on nodes.
+
+        ``argmin >= 0``: ``N = 1`` and ``r2[0, argmin]`` is the row's minimum. Then so
+        is ``z[0, argmin]`` (division by a positive constant is monotone after
+        rounding), which spares a reduction.
+        """
+        z = r2 / (2.0 * self.sigma_se)
+        zmin = z.min(axis=1, keepdims=True) if argmin < 0 else z[:, argmin : argmin + 1]
+        # log(weight / largest weight of the row); zmin - z == -(z - zmin) exactly
+        log_rel = zmin - z
+        W = np.exp(log_rel) if self.normalize else np.exp(-z)
+        W[log_rel < -_NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
+        if self.normalize:
+            W /= W.sum(axis=1, keepdims=True)
+        return W
+
     def shortest_path_to_nodes(self, X: FloatArray) -> FloatArray:
         """``SP(x*, x_j)`` [N, n] by eq. 4 or eq. 5 (``P`` rows for points on nodes)."""
         if self.method == "nearest":
             return pendant_distances(self.graph, self._P, X)
         W, cost = self._weights_and_costs(X)
-        return weighted_paths(W, self._P, split=self._split()) + cost[:, None]
+        Pf, Ui, unreachable = self._split()
+        return _weighted_paths(W, Pf, Ui, None, unreachable) + cost[:, None]
 
     def shortest_path(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         """``SP(x, y)`` [N, M] for arbitrary points (module docstring); symmetric, 0 if x == y."""
@@ -317,7 +367,8 @@ class GraphDistance(BasisGraphDistance):
             return _empty_graph_distances(g, X, Y)
         Wx, cx = self._weights_and_costs(X)
         Wy, cy = (Wx, cx) if Y is X else self._weights_and_costs(Y)
-        D = weighted_paths(Wx, self._P, Wy, split=self._split())
+        Pf, Ui, unreachable = self._split()
+        D = _weighted_paths(Wx, Pf, Ui, Wy, unreachable)
         if self.attach:  # sum_{l,m} wx_l wy_m (cx_l + cy_m) = cx sum(wy) + sum(wx) cy
             D += cx[:, None] * Wy.sum(axis=1)[None, :] + Wx.sum(axis=1)[:, None] * cy[None, :]
         if Y is X:
@@ -326,6 +377,8 @@ class GraphDistance(BasisGraphDistance):
 
     # -- Distance interface -----------------------------------------------------------------
     def _to_r2(self, SP: FloatArray) -> FloatArray:
+        if SP.ndim == 2 and SP.dtype == np.float64:
+            return squares_over(SP, self.sigma_sp)  # same bits, no errstate overhead
         with np.errstate(over="ignore"):
             return SP * SP / self.sigma_sp
 

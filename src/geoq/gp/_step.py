@@ -16,10 +16,17 @@ update of the trailing block. ``diag(Q)`` (needed for all the deletion scores)
 follows the rank-one updates of ``Q`` in O(m) and is refreshed exactly by the
 caller from time to time.
 
-The addition and the deletion are fused: the post-addition diagonal, ``alpha``
-and the deleted column are formed in O(m), then one pass over ``C`` applies the
-rank-one addition and the rank-two deletion downdate while compacting the
-deleted row and column away (order is preserved).
+Inside the step the whitened covariance ``S`` is kept as its lower triangle
+(matvec, rank-one updates and the deletion read and write only ``b <= a``; half
+the memory traffic, no transpose pass per point). :func:`online_step` mirrors it
+onto the upper triangle before returning, :func:`se_stream` once at the end of
+its loop, so callers always see a full, exactly symmetric ``S``.
+
+The addition and the deletion share passes: the post-addition ``mu``, ``alpha``
+and ``diag(Q + C)`` are formed in O(m), the deleted index is chosen, then one
+pass over the lower triangle applies the rank-one addition and forms the
+matvec the deletion needs; the deletion itself is one pass of Givens rotations
+over the rows below the deleted one and one pass of conditioning and compaction.
 
 Equation references are to Csató & Opper, "Sparse on-line Gaussian processes",
 Neural Computation 14 (2002) -- "CO" -- and the corrected Aston technical report
@@ -29,9 +36,8 @@ projection, 3.23-3.26 for the deletion).
 Sign convention (see :mod:`geoq.gp.sparse_online`): ``mean = k^T alpha``,
 ``var = k(x, x) + k^T C k``; ``C`` is negative (semi-)definite for a PD kernel.
 
-Symmetry of ``C`` is exact: every update adds symmetric terms written as
-``(s[a] * s[b]) * r`` (IEEE products commute), so a symmetric matrix stays bit
-for bit symmetric. Only the dot products use fast-math (reassociation).
+Symmetry of ``S`` (hence ``C``) is exact: only one triangle is computed.
+Only the dot products use fast-math (reassociation).
 
 Inner loops run over 1-D views with ``range(n)`` indices (``row = M[a, lo:hi]``,
 ``for b in range(row.shape[0])``): with ``M[a, b]`` and ``b`` from ``range(lo, hi)``
@@ -40,7 +46,7 @@ vectorises the loop with gathers (measured 3-6x slower for the triangular solves
 
 :func:`se_stream` is the whole-stream loop for the squared-exponential kernel:
 it computes ``k_x`` inside numba (per-dimension length-scales, optional
-periods) and calls :func:`online_step` for each row until the basis set has
+periods) and calls the step for each row until the basis set has
 changed ``stop_changes`` times (the caller then refreshes ``diag(Q)``).
 """
 
@@ -199,21 +205,74 @@ def _delete_cholesky(  # pragma: no cover - compiled
             rd[b] = nv
 
 
+@njit(cache=True, fastmath=True)
+def _symv_row(
+    row: FloatArray, v: FloatArray, va: float, g: FloatArray
+) -> float:  # pragma: no cover
+    """``g += row * va`` and return ``row . v`` (one row of a lower-stored symmetric matvec)."""
+    acc = 0.0
+    for b in range(row.shape[0]):
+        rb = row[b]
+        acc += rb * v[b]
+        g[b] += rb * va
+    return acc
+
+
 @njit(cache=True)
-def _rotate_rows(  # pragma: no cover - compiled
-    A: FloatArray, i: int, m: int, ncol: int, cth: FloatArray, sth: FloatArray
-) -> None:
-    """``A <- G^T A`` on rows ``(j, i)``, ``j = i+1 .. m-1``: contiguous, vectorised."""
-    ai = A[i, :ncol]
-    for j in range(i + 1, m):
-        c = cth[j]
-        sn = sth[j]
-        aj = A[j, :ncol]
-        for b in range(ncol):
-            t = aj[b]
-            xi = ai[b]
-            aj[b] = c * t + sn * xi
-            ai[b] = c * xi - sn * t
+def _symv_lower(
+    S: FloatArray, v: FloatArray, lo: int, m: int, out: FloatArray
+) -> None:  # pragma: no cover
+    """``out = S[:m, :m] v`` from the lower triangle of ``S``, for ``v`` zero before ``lo``."""
+    for a in range(m):
+        out[a] = 0.0
+    for a in range(lo, m):
+        va = v[a]
+        acc = _symv_row(S[a, lo:a], v[lo:a], va, out[lo:a])
+        if lo > 0:
+            sa = S[a, :lo]
+            oa = out[:lo]
+            for b in range(lo):
+                oa[b] += sa[b] * va
+        out[a] += acc + S[a, a] * va
+
+
+@njit(cache=True)
+def _rank_one_lower(S: FloatArray, g: FloatArray, r: float, a: int) -> None:  # pragma: no cover
+    """``S[a, :a+1] += (g[a] g[:a+1]) r`` (row ``a`` of a lower-stored rank-one update)."""
+    ga = g[a]
+    sr = S[a, : a + 1]
+    gb = g[: a + 1]
+    for b in range(sr.shape[0]):
+        sr[b] += (ga * gb[b]) * r
+
+
+@njit(cache=True)
+def _catch_up(
+    S: FloatArray, i: int, r: int, k0: int, x: float, cth: FloatArray, sth: FloatArray
+) -> float:  # pragma: no cover - compiled
+    """Carry ``x <- c_k x - s_k S[r, k]`` for ``k = k0 .. r-1`` (one row, serial)."""
+    sr = S[r, k0:r]
+    cv = cth[k0:r]
+    sv = sth[k0:r]
+    for k in range(sr.shape[0]):
+        x = cv[k] * x - sv[k] * sr[k]
+    return x
+
+
+@njit(cache=True)
+def _col_carry(
+    S: FloatArray, r: int, j0: int, y: float, cth: FloatArray, sth: FloatArray
+) -> float:  # pragma: no cover - compiled
+    """Column rotations of row ``r`` for ``j = j0 .. r``: ``S[r, j] <- c_j t + s_j y``,
+    ``y <- c_j y - s_j t`` with ``t = S[r, j]`` (one row, serial); returns ``y``."""
+    sr = S[r, j0 : r + 1]
+    cv = cth[j0 : r + 1]
+    sv = sth[j0 : r + 1]
+    for j in range(sr.shape[0]):
+        t = sr[j]
+        sr[j] = cv[j] * t + sv[j] * y
+        y = cv[j] * y - sv[j] * t
+    return y
 
 
 @njit(cache=True)
@@ -221,6 +280,7 @@ def _delete_whitened(  # pragma: no cover - compiled
     S: FloatArray,
     mu: FloatArray,
     sig: FloatArray,
+    x: FloatArray,
     i: int,
     m: int,
     cth: FloatArray,
@@ -229,6 +289,7 @@ def _delete_whitened(  # pragma: no cover - compiled
 ) -> None:
     """Csató–Opper deletion of whitened coordinate ``i`` after the Givens rotations.
 
+    ``S`` is stored as its lower triangle (the upper one is not read or kept).
     ``S <- G^T S G`` and ``mu <- G^T mu`` with the rotations of
     :func:`_delete_cholesky`: in the rotated coordinates BV ``i`` is the *last* in
     Cholesky order and no other BV depends on coordinate ``i``. The KL-optimal
@@ -237,27 +298,111 @@ def _delete_whitened(  # pragma: no cover - compiled
 
         mu <- mu_rest - sig mu_i / vs,    S <- S_rest - sig sig^T / vs
 
-    Two passes over ``S``: the row rotations ``A = G^T S`` (rows ``>= i``), then,
-    row by row, the column rotations ``A G`` of the *lower* triangle only (a carry
-    recurrence along the row), fused with the conditioning and the compaction of
-    row/column ``i``; the upper triangle is then mirrored, so ``S`` stays exactly
-    symmetric. ``sig`` [cap] is scratch.
+    Pass 1, rows ``r > i`` in order: the row rotations ``A = G^T S`` keep row ``i``
+    of ``A`` as a carry vector ``x`` [cap] (row ``r`` of ``A`` is
+    ``c_r S[r] + s_r x``, then ``x <- c_r x - s_r S[r]``). Only the lower part
+    ``A[r, :r+1]`` is formed; the entry ``x[r]`` it needs involves the upper
+    elements ``S[k, r] = S[r, k]``, ``k < r``, and is brought up to date from row
+    ``r`` itself just before (a serial recurrence). Then the column rotations
+    ``A G`` of the lower triangle (a carry recurrence along the row). Both serial
+    recurrences run four rows in lockstep (independent chains). The arithmetic is
+    that of the full-storage two-sided rotation. Pass 2: the conditioning and the
+    compaction of row/column ``i``. ``sig``, ``x`` [cap] are scratch.
     """
     for j in range(i + 1, m):
         t = mu[j]
         mu[j] = cth[j] * t + sth[j] * mu[i]
         mu[i] = cth[j] * mu[i] - sth[j] * t
-    _rotate_rows(S, i, m, m, cth, sth)  # A = G^T S: rows >= i change
+    xi = S[i, : i + 1]
+    for b in range(i + 1):
+        x[b] = xi[b]
+    r0 = i + 1
+    while r0 < m:
+        nb = min(4, m - r0)
+        # catch-up of x[r] for the rows of the block (original rows, read before any is rotated)
+        c0 = S[r0, i]
+        c1 = S[r0 + 1, i] if nb > 1 else 0.0
+        c2 = S[r0 + 2, i] if nb > 2 else 0.0
+        c3 = S[r0 + 3, i] if nb > 3 else 0.0
+        if nb == 4:
+            s0 = S[r0, i + 1 : r0]
+            s1 = S[r0 + 1, i + 1 : r0]
+            s2 = S[r0 + 2, i + 1 : r0]
+            s3 = S[r0 + 3, i + 1 : r0]
+            cv = cth[i + 1 : r0]
+            sv = sth[i + 1 : r0]
+            for k in range(s0.shape[0]):
+                c = cv[k]
+                sn = sv[k]
+                c0 = c * c0 - sn * s0[k]
+                c1 = c * c1 - sn * s1[k]
+                c2 = c * c2 - sn * s2[k]
+                c3 = c * c3 - sn * s3[k]
+            c1 = _catch_up(S, i, r0 + 1, r0, c1, cth, sth)
+            c2 = _catch_up(S, i, r0 + 2, r0, c2, cth, sth)
+            c3 = _catch_up(S, i, r0 + 3, r0, c3, cth, sth)
+        else:
+            c0 = _catch_up(S, i, r0, i + 1, c0, cth, sth)
+            if nb > 1:
+                c1 = _catch_up(S, i, r0 + 1, i + 1, c1, cth, sth)
+            if nb > 2:
+                c2 = _catch_up(S, i, r0 + 2, i + 1, c2, cth, sth)
+        # row rotations: A[r, :r+1] = c_r S[r, :r+1] + s_r x, x <- c_r x - s_r S[r]
+        for q in range(nb):
+            r = r0 + q
+            x[r] = c0 if q == 0 else (c1 if q == 1 else (c2 if q == 2 else c3))
+            c = cth[r]
+            sn = sth[r]
+            sr = S[r, : r + 1]
+            xr = x[: r + 1]
+            for b in range(sr.shape[0]):
+                t = sr[b]
+                sr[b] = c * t + sn * xr[b]
+                xr[b] = c * xr[b] - sn * t
+        # column rotations of the lower triangle: S[r, j] for i < j <= r
+        y0 = S[r0, i]
+        if nb == 4:
+            y1 = S[r0 + 1, i]
+            y2 = S[r0 + 2, i]
+            y3 = S[r0 + 3, i]
+            a0 = S[r0, i + 1 : r0 + 1]
+            a1 = S[r0 + 1, i + 1 : r0 + 1]
+            a2 = S[r0 + 2, i + 1 : r0 + 1]
+            a3 = S[r0 + 3, i + 1 : r0 + 1]
+            cv = cth[i + 1 : r0 + 1]
+            sv = sth[i + 1 : r0 + 1]
+            for j in range(a0.shape[0]):
+                c = cv[j]
+                sn = sv[j]
+                t0 = a0[j]
+                t1 = a1[j]
+                t2 = a2[j]
+                t3 = a3[j]
+                a0[j] = c * t0 + sn * y0
+                a1[j] = c * t1 + sn * y1
+                a2[j] = c * t2 + sn * y2
+                a3[j] = c * t3 + sn * y3
+                y0 = c * y0 - sn * t0
+                y1 = c * y1 - sn * t1
+                y2 = c * y2 - sn * t2
+                y3 = c * y3 - sn * t3
+            _col_carry(S, r0 + 1, r0 + 1, y1, cth, sth)
+            _col_carry(S, r0 + 2, r0 + 1, y2, cth, sth)
+            _col_carry(S, r0 + 3, r0 + 1, y3, cth, sth)
+        else:
+            for q in range(nb):
+                _col_carry(S, r0 + q, i + 1, S[r0 + q, i], cth, sth)
+        r0 += nb
     # sig = row i of A G: columns < i as they are, columns > i by the carry recurrence.
     for b in range(i):
-        sig[b] = S[i, b]
-    x = S[i, i]
+        sig[b] = x[b]
+    xc = x[i]
     for j in range(i + 1, m):
-        t = S[i, j]
-        sig[j] = cth[j] * t + sth[j] * x
-        x = cth[j] * x - sth[j] * t
-    sig[i] = x
-    vs = x
+        t = x[j]
+        sig[j] = cth[j] * t + sth[j] * xc
+        xc = cth[j] * xc - sth[j] * t
+    sig[i] = xc
+    vs = xc
     if vs > _PINNED:
         iv = 1.0 / vs
         fm = mu[i] * iv
@@ -271,8 +416,8 @@ def _delete_whitened(  # pragma: no cover - compiled
             mu[a] -= sig[a] * fm
     for j in range(i + 1, m):
         mu[j - 1] = mu[j]
-    # Lower triangle of the result, compacted in place (row a > i moves to a - 1 after
-    # row a - 1 has been consumed).
+    # Pass 2: conditioning of the lower triangle, compacted in place (row a > i moves
+    # to a - 1 after row a - 1 has been consumed; column j > i moves to j - 1).
     for a in range(i):
         sa = sig[a] * iv
         sr = S[a, : a + 1]
@@ -284,12 +429,11 @@ def _delete_whitened(  # pragma: no cover - compiled
         dst = S[a - 1, :i]
         for b in range(i):
             dst[b] = src[b] - sa * sig[b]
-        x = S[a, i]
-        for j in range(i + 1, a + 1):  # columns > a are not needed (upper triangle)
-            t = S[a, j]
-            S[a - 1, j - 1] = (cth[j] * t + sth[j] * x) - sa * sig[j]
-            x = cth[j] * x - sth[j] * t
-    _mirror_lower(S, m - 1)
+        src = S[a, i + 1 : a + 1]
+        dst = S[a - 1, i:a]
+        sg = sig[i + 1 : a + 1]
+        for b in range(src.shape[0]):
+            dst[b] = src[b] - sa * sg[b]
 
 
 @njit(cache=True)
@@ -306,7 +450,7 @@ def _mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def online_step(  # pragma: no cover - compiled
+def _step(  # pragma: no cover - compiled
     k: FloatArray,
     kxx: float,
     y: float,
@@ -327,13 +471,14 @@ def online_step(  # pragma: no cover - compiled
     T: FloatArray,
     counters: IntArray,
 ) -> tuple[int, int, int]:
-    """One Csató–Opper step for the observation ``(x, y)``, in place.
+    """One Csató–Opper step for ``(x, y)``, in place, on the lower triangle of ``S``.
 
     State (leading ``m`` block of each buffer; ``cap = max_bv + 1``):
     ``BV`` [cap, d]; ``R`` [cap, cap] upper with ``K_BV = R^T R``; the whitened
     posterior ``u ~ N(mu, S)`` with ``f_BV = R^T u`` (``mu`` [cap], ``S`` [cap, cap],
-    ``0 <= S <= I``); and, for the deletion scores only, ``alpha = R^{-1} mu`` [cap]
-    and ``mdiag = diag(Q + C) = diag(R^{-1} S R^{-T})`` [cap], both following the
+    ``0 <= S <= I``; only ``S[a, b]``, ``b <= a``, is read or written); and, for
+    the deletion scores only, ``alpha = R^{-1} mu`` [cap] and
+    ``mdiag = diag(Q + C) = diag(R^{-1} S R^{-T})`` [cap], both following the
     rank-one updates of Csató–Opper in O(m). ``T`` [cap, cap] and ``work``
     [N_WORK, cap] are scratch; ``counters`` int64 [len(COUNTER_NAMES)].
 
@@ -383,8 +528,7 @@ def online_step(  # pragma: no cover - compiled
             for a in range(m):
                 v[a] *= sc
         gamma = 0.0
-    for a in range(m):
-        g[a] = _dot_row(S, a, v, 0, m)  # g = S v [m]
+    _symv_lower(S, v, 0, m, g)  # g = S v [m]
     mean = _dot(mu, v, 0, m)
     vsv = _dot(v, g, 0, m)
     if vsv < 0.0:
@@ -407,10 +551,7 @@ def online_step(  # pragma: no cover - compiled
             mu[a] += qe * g[a]
             alpha[a] += qe * s[a]
             mdiag[a] += (s[a] * s[a]) * re
-            ga = g[a]
-            sr = S[a, :m]
-            for b in range(m):
-                sr[b] += (ga * g[b]) * re
+            _rank_one_lower(S, g, re, a)
         counters[_PROJECTED] += 1
         return m, 0, -1
 
@@ -430,7 +571,6 @@ def online_step(  # pragma: no cover - compiled
         R[a, m] = v[a]
         R[m, a] = 0.0
         S[m, a] = 0.0
-        S[a, m] = 0.0
     R[m, m] = sg
     S[m, m] = 1.0
     mu[m] = 0.0
@@ -446,11 +586,9 @@ def online_step(  # pragma: no cover - compiled
         mu[a] += q * g[a]
         alpha[a] += q * s[a]
         mdiag[a] += (e[a] * e[a]) * ig + (s[a] * s[a]) * r
-        ga = g[a]
-        sr = S[a, :m1]
-        for b in range(m1):
-            sr[b] += (ga * g[b]) * r
     if m1 <= max_bv:
+        for a in range(m1):
+            _rank_one_lower(S, g, r, a)
         return m1, 1, -1
 
     # Budget exceeded: delete the BV with the lowest score alpha_i^2 / (Q_ii + C_ii)
@@ -475,8 +613,20 @@ def online_step(  # pragma: no cover - compiled
         w[a] = 0.0
     w[i] = 1.0
     _forward(R, w, i, m1, z)  # z = R^{-T} e_i
+    # One pass over the lower triangle: the rank-one update of the addition, and
+    # e = S z with the updated rows (z is zero before i).
     for a in range(m1):
-        e[a] = _dot_row(S, a, z, i, m1)  # e = S z
+        e[a] = 0.0
+    for a in range(m1):
+        _rank_one_lower(S, g, r, a)
+        if a >= i:
+            za = z[a]
+            acc = _symv_row(S[a, i:a], z[i:a], za, e[i:a])
+            sa = S[a, :i]
+            ea = e[:i]
+            for b in range(i):
+                ea[b] += sa[b] * za
+            e[a] += acc + S[a, a] * za
     _backward(R, e, m1, w)  # w = column i of Q + C
     wi = w[i]
     f = alpha[i] / wi if wi > 0.0 else 0.0
@@ -488,11 +638,46 @@ def online_step(  # pragma: no cover - compiled
         alpha[a2] = alpha[a] - f * w[a]
         mdiag[a2] = mdiag[a] - (w[a] * w[a]) * iw
     _delete_cholesky(R, i, m1, z, cth, sth)
-    _delete_whitened(S, mu, T[0], i, m1, cth, sth, counters)
+    _delete_whitened(S, mu, T[0], T[1], i, m1, cth, sth, counters)
     for a in range(i + 1, m1):
         BV[a - 1, :] = BV[a, :]
     counters[_DELETED] += 1
     return m, 1, i
+
+
+@njit(cache=True)
+def online_step(  # pragma: no cover - compiled
+    k: FloatArray,
+    kxx: float,
+    y: float,
+    x: FloatArray,
+    noise: float,
+    tol: float,
+    floor: float,
+    noise_floor: float,
+    max_bv: int,
+    BV: FloatArray,
+    mu: FloatArray,
+    S: FloatArray,
+    R: FloatArray,
+    alpha: FloatArray,
+    mdiag: FloatArray,
+    m: int,
+    work: FloatArray,
+    T: FloatArray,
+    counters: IntArray,
+) -> tuple[int, int, int]:
+    """One Csató–Opper step for the observation ``(x, y)``, in place (see :func:`_step`).
+
+    ``S`` is read from and written to as a full symmetric matrix: the step works on
+    its lower triangle and the upper one is mirrored at the end.
+    """
+    m_new, added, deleted = _step(
+        k, kxx, y, x, noise, tol, floor, noise_floor, max_bv,
+        BV, mu, S, R, alpha, mdiag, m, work, T, counters,
+    )  # fmt: skip
+    _mirror_lower(S, m_new)
+    return m_new, added, deleted
 
 
 @njit(cache=True, fastmath=True)
@@ -617,7 +802,7 @@ def se_stream(  # pragma: no cover - compiled
     t = start
     while t < n:
         se_kernel_vector(X[t], BV, m, inv_ls, period, variance, kbuf)
-        m, added, deleted = online_step(
+        m, added, deleted = _step(
             kbuf, variance, y[t], X[t], noise, tol, floor, noise_floor, max_bv,
             BV, mu, S, R, alpha, mdiag, m, work, T, counters,
         )  # fmt: skip
@@ -625,4 +810,5 @@ def se_stream(  # pragma: no cover - compiled
         changes += added + (1 if deleted >= 0 else 0)
         if changes >= stop_changes:
             break
+    _mirror_lower(S, m)  # the steps keep the lower triangle only
     return t, m, changes

@@ -20,7 +20,9 @@ Inside the step the whitened covariance ``S`` is kept as its lower triangle
 (matvec, rank-one updates and the deletion read and write only ``b <= a``; half
 the memory traffic, no transpose pass per point). :func:`online_step` mirrors it
 onto the upper triangle before returning, :func:`se_stream` once at the end of
-its loop, so callers always see a full, exactly symmetric ``S``.
+its loop, and the per-point stream of other kernels (:func:`online_step_lower`)
+leaves it to its caller (:func:`mirror_lower` once per batch and before any
+other reader), so callers always see a full, exactly symmetric ``S``.
 
 The addition and the deletion share passes: the post-addition ``mu``, ``alpha``
 and ``diag(Q + C)`` are formed in O(m), the deleted index is chosen, then one
@@ -60,7 +62,9 @@ from geoq._typing import FloatArray, IntArray
 __all__ = [
     "COUNTER_NAMES",
     "N_WORK",
+    "mirror_lower",
     "online_step",
+    "online_step_lower",
     "refresh_scores",
     "se_kernel_vector",
     "se_stream",
@@ -678,6 +682,56 @@ def online_step(  # pragma: no cover - compiled
     )  # fmt: skip
     _mirror_lower(S, m_new)
     return m_new, added, deleted
+
+
+@njit(cache=True)
+def online_step_lower(  # pragma: no cover - compiled
+    k: FloatArray,
+    scale: float,
+    kxx: float,
+    y: float,
+    x: FloatArray,
+    noise: float,
+    tol: float,
+    floor: float,
+    noise_floor: float,
+    max_bv: int,
+    BV: FloatArray,
+    mu: FloatArray,
+    S: FloatArray,
+    R: FloatArray,
+    alpha: FloatArray,
+    mdiag: FloatArray,
+    m: int,
+    work: FloatArray,
+    T: FloatArray,
+    counters: IntArray,
+) -> tuple[int, int, int]:
+    """:func:`_step` for a stream of points: ``S`` stays lower-triangular (no mirror).
+
+    ``k[:m]`` is first multiplied by ``scale`` in place (``scale = 1`` leaves it
+    unchanged bit for bit). If ``k[:m]`` or ``kxx`` is not finite the state is left
+    untouched and ``(m, -1, -1)`` is returned. The caller mirrors ``S`` with
+    :func:`mirror_lower` before anything else reads it.
+    """
+    finite = np.isfinite(kxx)
+    for j in range(m):
+        kj = k[j] * scale
+        k[j] = kj
+        if not np.isfinite(kj):
+            finite = False
+    if not finite:
+        return m, -1, -1
+    return _step(
+        k, kxx, y, x, noise, tol, floor, noise_floor, max_bv,
+        BV, mu, S, R, alpha, mdiag, m, work, T, counters,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
+    """Copy the lower triangle of ``S[:n, :n]`` onto its upper triangle."""
+    _mirror_lower(S, n)
 
 
 @njit(cache=True, fastmath=True)

@@ -71,7 +71,8 @@ from geoq.gp._step import (
     _NOVCLIP,
     COUNTER_NAMES,
     N_WORK,
-    online_step,
+    mirror_lower,
+    online_step_lower,
     refresh_scores,
     se_stream,
 )
@@ -84,6 +85,7 @@ from geoq.gp.numerics import (
     safe_cholesky,
 )
 from geoq.kernels.base import Kernel, kernel_from_arrays, kernel_to_arrays
+from geoq.kernels.geodesic import GraphKernel
 from geoq.kernels.stationary import SquaredExponential
 
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
@@ -421,8 +423,7 @@ class SparseOnlineGP:
         self._set_dim(X.shape[1])
         fast = self._fast_kernel()
         if fast is None:
-            for t in range(X.shape[0]):
-                self._update_point(X[t], float(y[t]))
+            self._stream_points(X, y)
         else:
             inv_ls, period, variance = fast
             t = 0
@@ -440,30 +441,61 @@ class SparseOnlineGP:
         self._warn_once()
         return self
 
-    def _update_point(self, x: FloatArray, y: float) -> None:
-        """Per-point path: kernel in Python, step compiled, hooks in between points."""
-        m = self._m
+    def _stream_points(self, X: FloatArray, y: FloatArray) -> None:
+        """Per-point path: kernel in Python, step compiled, hooks in between points.
+
+        The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
+        mirrored before a resync and when the batch ends (also on an error). A graph
+        kernel's covariance row comes from its fused compiled path
+        (:meth:`GraphKernel._row_exponent_fn`), else from ``to_basis``.
+        """
+        kernel = self.kernel
+        row_exponent, variance = None, 1.0
+        if isinstance(kernel, GraphKernel):
+            row_exponent, variance = kernel._row_exponent_fn(), kernel.variance
+        S, kbuf, bv = self._S, self._kbuf, self._bv
+        args = (
+            self.noise, self.tol, self.config.novelty_floor, self.config.noise_floor,
+            self.max_bv, bv, self._mu, S, self._R, self._alpha, self._mdiag,
+        )  # fmt: skip
+        work, T, counters = self._work, self._T, self._counters
+        try:
+            for x, yt in zip(X, y.tolist(), strict=True):
+                m = self._m
+                expo = None if row_exponent is None else row_exponent(x, bv, m)
+                if expo is not None:
+                    np.exp(expo, out=kbuf[:m])
+                    kxx = scale = variance
+                else:
+                    kxx, scale = self._kernel_row(x, m), 1.0
+                self._m, added, deleted = online_step_lower(
+                    kbuf, scale, kxx, yt, x, *args, m, work, T, counters
+                )
+                if added < 0:
+                    raise ValueError(f"kernel returned non-finite covariances at x={x}; check it")
+                if added:
+                    kernel.basis_added(x.copy())
+                    if deleted >= 0:
+                        kernel.basis_removed(int(deleted))
+                        self._changes += 2
+                    else:
+                        self._changes += 1
+                if self._changes >= self.resync_every:
+                    mirror_lower(S, self._m)
+                    self._resync_q()
+        finally:
+            mirror_lower(S, self._m)
+
+    def _kernel_row(self, x: FloatArray, m: int) -> float:
+        """``k(x, BV)`` into ``self._kbuf[:m]`` by ``to_basis``; returns ``k(x, x)``."""
         kx = np.asarray(self.kernel.to_basis(x[None, :], self._bv[:m]), dtype=np.float64)
         kxx = np.asarray(self.kernel._diag(x[None, :]), dtype=np.float64)
         if kx.shape != (1, m) or kxx.shape != (1,):
             raise ValueError(
                 f"kernel returned shapes {kx.shape} and {kxx.shape}; expected (1, {m}) and (1,)"
             )
-        if not (np.all(np.isfinite(kx)) and np.isfinite(kxx[0])):
-            raise ValueError(f"kernel returned non-finite covariances at x={x}; check it")
         self._kbuf[:m] = kx[0]
-        self._m, added, deleted = online_step(
-            self._kbuf, float(kxx[0]), y, x, self.noise, self.tol, self.config.novelty_floor,
-            self.config.noise_floor, self.max_bv, self._bv, self._mu, self._S, self._R,
-            self._alpha, self._mdiag, m, self._work, self._T, self._counters,
-        )  # fmt: skip
-        if added:
-            self.kernel.basis_added(x.copy())
-        if deleted >= 0:
-            self.kernel.basis_removed(int(deleted))
-        self._changes += added + int(deleted >= 0)
-        if self._changes >= self.resync_every:
-            self._resync_q()
+        return float(kxx[0])
 
     # ------------------------------------------------------- resync / refit
     def _factor_gram(self) -> FloatArray:

@@ -59,13 +59,22 @@ Usage with the sparse online GP: the GP calls ``basis_added``/``basis_removed``/
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, check_positive
-from geoq.graph._apsp import rows_equal, squares_over
+from geoq.graph._apsp import (
+    EINSUM_ROW_MAX,
+    interpolated_row_exponent,
+    interpolated_row_prepare,
+    interpolated_row_weights,
+    nearest_row_exponent,
+    rows_equal,
+    squares_over,
+)
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
 from geoq.kernels.base import Distance, GaussianOfDistance, Kernel
 
@@ -282,6 +291,8 @@ class GraphDistance(BasisGraphDistance):
         self.normalize = bool(normalize)
         self.attach = bool(attach)
         self._split_cache: tuple[int, FloatArray, FloatArray, bool] | None = None
+        scr = np.empty((4, 0))  # rows: r2, log_rel, exp argument, exponent
+        self._row_views = (scr[0], scr[1], scr[2], scr[3], scr)
 
     @property
     def _P(self) -> FloatArray:
@@ -375,6 +386,57 @@ class GraphDistance(BasisGraphDistance):
             D = 0.5 * (D + D.T)
         return _zero_identical(g, D, X, Y)
 
+    def row_exponent(self, x: FloatArray, basis: FloatArray, m: int) -> FloatArray | None:
+        """``-0.5 r^2(x, BV_j)`` [m] for one point ``x`` [d] (the GP's per-point path).
+
+        ``basis`` is the GP's BV buffer (``[>= m, d]``). The same floating-point
+        operations as :meth:`squared_to_basis` on ``x[None, :]``, fused into compiled
+        calls around the numpy ``exp`` (eq. 5 weights), ``W @ P`` and ``einsum``
+        (attach cost); the result is bit-identical. Returns a view of scratch space
+        (valid until the next call), or None where the general path must be used
+        (fewer than two nodes, basis out of sync, another dimension).
+        """
+        g = self.graph
+        n = g._n
+        d = x.shape[0]
+        if n < 2 or n != m or g._dim != d or n > EINSUM_ROW_MAX:
+            return None
+        rows = self._row_views
+        if rows[0].shape[0] < n:
+            scr = np.empty((4, g._cap))
+            rows = self._row_views = (scr[0], scr[1], scr[2], scr[3], scr)
+        r2, log_rel, arg, out, scr = rows
+        period = g.period if g.period is not None else g._period_or_zeros(d)
+        if self.method == "nearest":
+            squared = g.edge_weight == "squared"
+            ok = nearest_row_exponent(
+                x, g._X, n, basis, period, squared, g._P, self.sigma_sp, r2, out
+            )
+            return out[:m] if ok else None
+        a = interpolated_row_prepare(
+            x, g._X, n, basis, period, 2.0 * self.sigma_se, self.normalize, r2, log_rel, arg
+        )
+        if a == -1:
+            return None
+        squared = g.edge_weight == "squared"
+        if a < 0:  # on node -2 - a: e_a
+            W = np.zeros((1, n))
+            W[0, -2 - a] = 1.0
+            wr = g.weight_of(scr[0:1, :n])
+            cost = float(np.einsum("nk,nk->n", W, wr)[0]) if self.attach else 0.0
+        else:
+            W = np.exp(scr[2:3, :n])
+            cost = interpolated_row_weights(
+                W, log_rel, r2, n, _NEGLIGIBLE_LOG, self.normalize, self.attach, squared
+            )
+        cache = self._split_cache
+        if cache is None or cache[0] != g.version:
+            self._split()
+            cache = self._split_cache
+            assert cache is not None
+        interpolated_row_exponent(W @ cache[1], W, g._P, n, cache[3], cost, self.sigma_sp, out)
+        return out[:m]
+
     # -- Distance interface -----------------------------------------------------------------
     def _to_r2(self, SP: FloatArray) -> FloatArray:
         if SP.ndim == 2 and SP.dtype == np.float64:
@@ -455,6 +517,18 @@ class GraphKernel(GaussianOfDistance):
         ``for X, y in rollouts: gk.start_rollout(); gp.partial_fit(X, y)``.
         """
         return self.graph.start_rollout()
+
+    def _row_exponent_fn(self) -> Callable[[FloatArray, FloatArray, int], FloatArray | None] | None:
+        """``GraphDistance.row_exponent`` if this kernel's ``to_basis`` is exactly
+        ``variance * exp(row_exponent)`` and ``k(x, x) = variance``, else None."""
+        cls = type(self)
+        if (
+            cls.to_basis is not GaussianOfDistance.to_basis
+            or cls._diag is not GaussianOfDistance._diag
+            or type(self.distance) is not GraphDistance
+        ):
+            return None
+        return self.distance.row_exponent
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Kernel:

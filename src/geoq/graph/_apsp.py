@@ -13,6 +13,7 @@ import numpy as np
 from geoq._typing import FloatArray, IntArray
 
 __all__ = [
+    "add_linked_node",
     "add_node_paths",
     "affected_sources",
     "delete_node_paths",
@@ -26,6 +27,7 @@ __all__ = [
     "nearest_row_exponent",
     "relax_through_node",
     "rows_equal",
+    "squared_distances_row",
     "squares_over",
     "wrapped_squared_distances",
 ]
@@ -823,3 +825,54 @@ def interpolated_row_exponent(
     for j in range(n):
         v = out[j] + cost
         out[j] = -0.5 * (v * v / sigma_sp)
+
+
+# -- adding a node (eq. 2) ---------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def squared_distances_row(
+    x: FloatArray, X: FloatArray, n: int, period: FloatArray, r2: FloatArray, neg: FloatArray
+) -> None:
+    """``r2[j]`` = wrapped ``|x - X_j|^2`` (as :func:`wrapped_squared_distances`) and
+    ``neg[j] = -r2[j]``, ``j < n``."""
+    d = x.shape[0]
+    for j in range(n):
+        s = 0.0
+        for k in range(d):
+            diff = x[k] - X[j, k]
+            p = period[k]
+            if p > 0.0:
+                diff = diff - p * np.rint(diff / p)
+            s += diff * diff
+        r2[j] = s
+        neg[j] = -s
+
+
+@numba.njit(cache=True, nogil=True)
+def add_linked_node(
+    P: FloatArray,
+    W: FloatArray,
+    n: int,
+    e: FloatArray,
+    eps: float,
+    r2: FloatArray,
+    squared: bool,
+    prev: int,
+    d: FloatArray,
+    via: IntArray,
+    nbr: IntArray,
+    wn: FloatArray,
+) -> int:
+    """Append node ``n`` linked to every ``j`` with ``e[j] = exp(-r2[j]) > eps`` (eq. 2)
+    and to ``prev`` (if ``>= 0``), by weights ``r2`` (``squared``) or ``sqrt(r2)``;
+    :func:`add_node_paths` on the neighbours in increasing order. ``nbr``, ``wn``
+    [>= n] are scratch. Returns the rows touched by the relaxation.
+    """
+    deg = 0
+    for j in range(n):
+        if e[j] > eps or j == prev:
+            nbr[deg] = j
+            wn[deg] = r2[j] if squared else np.sqrt(r2[j])
+            deg += 1
+    return add_node_paths(P, W, n, nbr[:deg], wn[:deg], d, via)

@@ -58,10 +58,11 @@ from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
 from geoq.graph._apsp import (
     DELETE_RTOL,
-    add_node_paths,
+    add_linked_node,
     delete_node_paths,
     drop_index,
     insert_edge,
+    squared_distances_row,
     wrapped_squared_distances,
 )
 
@@ -143,6 +144,10 @@ class MDPGraph:
         self._ids = np.zeros(cap, dtype=np.int64)
         self._d = np.empty(cap)
         self._via = np.empty(cap, dtype=np.int64)
+        self._r2 = np.empty(cap)  # scratch of add_node
+        self._neg = np.empty(cap)
+        self._nbr = np.empty(cap, dtype=np.int64)
+        self._wn = np.empty(cap)
 
     def _grow(self) -> None:
         n, old = self._n, (self._X, self._W, self._P, self._ids)
@@ -294,18 +299,23 @@ class MDPGraph:
         if self._n == self._cap:
             self._grow()
         n, v = self._n, self._n
-        r2 = self.squared_distances(xa[None, :], self._X[:n])[0]  # [n]
-        link = np.exp(-r2) > self.eps  # eq. 2, evaluated literally
-        w = self.weight_of(r2)
+        d = xa.shape[0]
+        r2, neg = self._r2, self._neg
+        squared_distances_row(
+            np.ascontiguousarray(xa), self._X, n, self._period_or_zeros(d), r2, neg
+        )
+        e = np.exp(neg[:n])  # eq. 2, evaluated literally: exp(-r2) > eps
+        prev = -1
         if self.temporal_edges:
             prev = self._temporal_neighbour(v, self._rollout, before=True)
-            if prev >= 0:
-                link[prev] = True
-        nbr = np.flatnonzero(link).astype(np.int64, copy=False)
-        wn = w[nbr]
         self._X[v] = xa
         self._ids[v] = self._rollout
-        self.last_add_rows = int(add_node_paths(self._P, self._W, n, nbr, wn, self._d, self._via))
+        squared = self.edge_weight == "squared"
+        rows = add_linked_node(
+            self._P, self._W, n, e, self.eps, r2, squared, prev,
+            self._d, self._via, self._nbr, self._wn,
+        )  # fmt: skip
+        self.last_add_rows = int(rows)
         self._n = n + 1
         self._changed()
         return v

@@ -7,6 +7,8 @@ loops over float64 arrays; the bookkeeping lives in :mod:`geoq.graph.mdp_graph`.
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -758,6 +760,28 @@ def einsum_row_dot(a: FloatArray, b: FloatArray, n: int) -> float:
             acc1 = 0.0 * 0.0 + acc1
         i += 2
     return 0.0 + (acc0 + acc1)
+
+
+@functools.cache
+def numpy_summation_reproduced() -> bool:
+    """Whether :func:`_pairwise_sum` and :func:`einsum_row_dot` give numpy's bits here.
+
+    They copy numpy's summation order, an implementation detail of the installed
+    numpy build; the fused per-point geodesic row that relies on them is used only
+    when this check (lengths 1-300 and a few long rows, several offsets) passes, so
+    a numpy with another order costs speed, never reproducibility.
+    """
+    rng = np.random.default_rng(20121)
+    buf = rng.random(EINSUM_ROW_MAX + 8) * 10.0 ** rng.integers(-6, 6, EINSUM_ROW_MAX + 8)
+    other = rng.standard_normal(EINSUM_ROW_MAX + 8)
+    for n in (*range(1, 301), 511, 1029, 4097, EINSUM_ROW_MAX):
+        for off in (0, 1, 3):
+            a, b = buf[off : off + n], other[off : off + n]
+            if _pairwise_sum(a, 0, n) != a[None, :].sum(axis=1, keepdims=True)[0, 0]:
+                return False
+            if einsum_row_dot(a, b, n) != np.einsum("nk,nk->n", a[None, :], b[None, :])[0]:
+                return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True)

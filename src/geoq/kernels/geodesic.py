@@ -72,6 +72,7 @@ from geoq.graph._apsp import (
     interpolated_row_prepare,
     interpolated_row_weights,
     nearest_row_exponent,
+    numpy_summation_reproduced,
     rows_equal,
     squares_over,
 )
@@ -526,6 +527,7 @@ class GraphKernel(GaussianOfDistance):
             cls.to_basis is not GaussianOfDistance.to_basis
             or cls._diag is not GaussianOfDistance._diag
             or type(self.distance) is not GraphDistance
+            or not numpy_summation_reproduced()
         ):
             return None
         return self.distance.row_exponent

@@ -85,7 +85,6 @@ from geoq.gp.numerics import (
     safe_cholesky,
 )
 from geoq.kernels.base import Kernel, kernel_from_arrays, kernel_to_arrays
-from geoq.kernels.geodesic import GraphKernel
 from geoq.kernels.stationary import SquaredExponential
 
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
@@ -447,12 +446,11 @@ class SparseOnlineGP:
         The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
         mirrored before a resync and when the batch ends (also on an error). A graph
         kernel's covariance row comes from its fused compiled path
-        (:meth:`GraphKernel._row_exponent_fn`), else from ``to_basis``.
+        (``Kernel._fused_row``), else from ``to_basis``.
         """
         kernel = self.kernel
-        row_exponent, variance = None, 1.0
-        if isinstance(kernel, GraphKernel):
-            row_exponent, variance = kernel._row_exponent_fn(), kernel.variance
+        fused = kernel._fused_row()
+        row_exponent, variance = (None, 1.0) if fused is None else fused
         S, kbuf, bv = self._S, self._kbuf, self._bv
         args = (
             self.noise, self.tol, self.config.novelty_floor, self.config.noise_floor,

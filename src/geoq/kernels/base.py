@@ -15,6 +15,7 @@ and turns its configuration (and state) into plain arrays with ``to_arrays`` /
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -29,6 +30,9 @@ __all__ = [
     "kernel_from_arrays",
     "kernel_to_arrays",
 ]
+
+#: ``f(x, BV, m) -> exponents [m] | None`` of a kernel's fused per-point row.
+RowExponent = Callable[[FloatArray, FloatArray, int], FloatArray | None]
 
 _KERNELS: dict[str, type[Kernel]] = {}
 _DISTANCES: dict[str, type[Distance]] = {}
@@ -142,6 +146,15 @@ class Kernel(ABC):
     def follows_basis(self, basis: FloatArray) -> bool:
         """Whether the kernel's basis-following state matches ``basis`` [m, d]."""
         return True
+
+    def _fused_row(self) -> tuple[RowExponent, float] | None:
+        """A compiled per-point path for the GP, or None (the GP then uses :meth:`to_basis`).
+
+        ``(f, c)``: whenever ``f(x [d], BV [cap, d], m)`` returns an array ``e`` [m]
+        (None means "not here, use to_basis"), ``k(x, BV[:m]) = c * exp(e)`` and
+        ``k(x, x) = c``, bit for bit.
+        """
+        return None
 
     # -- persistence ------------------------------------------------------------------
     @abstractmethod

@@ -77,7 +77,7 @@ from geoq.graph._apsp import (
     squares_over,
 )
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
-from geoq.kernels.base import Distance, GaussianOfDistance, Kernel
+from geoq.kernels.base import Distance, GaussianOfDistance, Kernel, RowExponent
 
 __all__ = [
     "NEGLIGIBLE_WEIGHT",
@@ -531,6 +531,10 @@ class GraphKernel(GaussianOfDistance):
         ):
             return None
         return self.distance.row_exponent
+
+    def _fused_row(self) -> tuple[RowExponent, float] | None:
+        fn = self._row_exponent_fn()
+        return None if fn is None else (fn, self.variance)
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> Kernel:

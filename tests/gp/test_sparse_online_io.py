@@ -255,21 +255,31 @@ def test_tampered_file_is_rejected(tmp_path: Path, edit: object, match: str) -> 
         SparseOnlineGP.load(bad)
 
 
-def test_version_1_files_still_load(tmp_path: Path) -> None:
-    """Format 1 had 8 counters (no ``noise_floored``); it loads with that counter at 0."""
+@pytest.mark.parametrize("version", [1, 2])
+def test_older_format_versions_still_load(tmp_path: Path, version: int) -> None:
+    """Format 1 had 8 counters (no ``noise_floored``), formats 1-2 no
+    ``covariance_projections`` nor the predict-time repair state: they load with
+    those at 0 and predict exactly as saved."""
     gp, X = _fitted()
     path = tmp_path / "model.npz"
     gp.save(path)
-    old = tmp_path / "v1.npz"
+    old = tmp_path / f"v{version}.npz"
 
-    def to_v1(a: dict[str, object]) -> None:
-        _header(1)(a)
-        a["counters"] = np.asarray(a["counters"])[:8]
-        del a["extra.covariance_projections"]
+    def downgrade(a: dict[str, object]) -> None:
+        _header(version)(a)
+        if version == 1:
+            a["counters"] = np.asarray(a["counters"])[:8]
+        for name in (
+            "extra.covariance_projections",
+            "predict_rescaled",
+            "novelty_clipped_at_refit",
+        ):
+            del a[name]
 
-    _rewrite(path, old, to_v1)
+    _rewrite(path, old, downgrade)
     loaded = SparseOnlineGP.load(old)
     assert loaded.diagnostics.noise_floored == 0
+    assert loaded.diagnostics.covariance_projections == 0
     np.testing.assert_array_equal(loaded.predict(X), gp.predict(X))
 
 
@@ -294,20 +304,3 @@ def test_save_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None
         monkeypatch.setattr(geoq._io.os, "fsync", boom)
         gp.save(tmp_path / "new.npz")
     assert not (tmp_path / "new.npz").exists()
-
-
-def test_version_2_files_still_load(tmp_path: Path) -> None:
-    """Format 2 had no ``covariance_projections`` counter; it loads with it at 0."""
-    gp, X = _fitted()
-    path = tmp_path / "model.npz"
-    gp.save(path)
-    old = tmp_path / "v2.npz"
-
-    def to_v2(a: dict[str, object]) -> None:
-        _header(2)(a)
-        del a["extra.covariance_projections"]
-
-    _rewrite(path, old, to_v2)
-    loaded = SparseOnlineGP.load(old)
-    assert loaded.diagnostics.covariance_projections == 0
-    np.testing.assert_array_equal(loaded.predict(X), gp.predict(X))

@@ -1,6 +1,6 @@
 """Compiled (numba) per-point step of the sparse online GP, used by every update path.
 
-One function, :func:`online_step`, performs the whole Csató–Opper step for one
+One function, :func:`_step`, performs the whole Csató–Opper step for one
 observation in place on preallocated ``[cap]`` / ``[cap, cap]`` buffers
 (``cap = max_bv + 1``): predictive moments, novelty, either the projected
 (non-novel) update or the full (novel) update, and -- when the budget is
@@ -18,11 +18,11 @@ caller from time to time.
 
 Inside the step the whitened covariance ``S`` is kept as its lower triangle
 (matvec, rank-one updates and the deletion read and write only ``b <= a``; half
-the memory traffic, no transpose pass per point). :func:`online_step` mirrors it
-onto the upper triangle before returning, :func:`se_stream` once at the end of
-its loop, and the per-point stream of other kernels (:func:`online_step_lower`)
-leaves it to its caller (:func:`mirror_lower` once per batch and before any
-other reader), so callers always see a full, exactly symmetric ``S``.
+the memory traffic, no transpose pass per point). :func:`se_stream` mirrors it
+onto the upper triangle once at the end of its loop, and the per-point stream of
+other kernels (:func:`online_step_lower`) leaves it to its caller
+(:func:`mirror_lower` once per batch and before any other reader), so callers
+always see a full, exactly symmetric ``S``.
 
 The addition and the deletion share passes: the post-addition ``mu``, ``alpha``
 and ``diag(Q + C)`` are formed in O(m), the deleted index is chosen, then one
@@ -63,7 +63,6 @@ __all__ = [
     "COUNTER_NAMES",
     "N_WORK",
     "mirror_lower",
-    "online_step",
     "online_step_lower",
     "refresh_scores",
     "se_kernel_vector",
@@ -93,7 +92,7 @@ _VAR_ROUNDING = 1e-9
 #: ``score_clipped``), since ``S[:, i] / S[i, i]`` would be rounding noise.
 _PINNED = 1e-13
 
-#: Number of ``[cap]`` work vectors :func:`online_step` needs.
+#: Number of ``[cap]`` work vectors :func:`_step` needs.
 N_WORK = 8
 
 
@@ -441,7 +440,7 @@ def _delete_whitened(  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
+def mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
     """Copy the lower triangle of ``S[:n, :n]`` onto its upper triangle (tiled transpose)."""
     bs = 32
     for a0 in range(0, n, bs):
@@ -650,41 +649,6 @@ def _step(  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def online_step(  # pragma: no cover - compiled
-    k: FloatArray,
-    kxx: float,
-    y: float,
-    x: FloatArray,
-    noise: float,
-    tol: float,
-    floor: float,
-    noise_floor: float,
-    max_bv: int,
-    BV: FloatArray,
-    mu: FloatArray,
-    S: FloatArray,
-    R: FloatArray,
-    alpha: FloatArray,
-    mdiag: FloatArray,
-    m: int,
-    work: FloatArray,
-    T: FloatArray,
-    counters: IntArray,
-) -> tuple[int, int, int]:
-    """One Csató–Opper step for the observation ``(x, y)``, in place (see :func:`_step`).
-
-    ``S`` is read from and written to as a full symmetric matrix: the step works on
-    its lower triangle and the upper one is mirrored at the end.
-    """
-    m_new, added, deleted = _step(
-        k, kxx, y, x, noise, tol, floor, noise_floor, max_bv,
-        BV, mu, S, R, alpha, mdiag, m, work, T, counters,
-    )  # fmt: skip
-    _mirror_lower(S, m_new)
-    return m_new, added, deleted
-
-
-@njit(cache=True)
 def online_step_lower(  # pragma: no cover - compiled
     k: FloatArray,
     scale: float,
@@ -726,12 +690,6 @@ def online_step_lower(  # pragma: no cover - compiled
         k, kxx, y, x, noise, tol, floor, noise_floor, max_bv,
         BV, mu, S, R, alpha, mdiag, m, work, T, counters,
     )  # fmt: skip
-
-
-@njit(cache=True)
-def mirror_lower(S: FloatArray, n: int) -> None:  # pragma: no cover - compiled
-    """Copy the lower triangle of ``S[:n, :n]`` onto its upper triangle."""
-    _mirror_lower(S, n)
 
 
 @njit(cache=True, fastmath=True)
@@ -841,7 +799,7 @@ def se_stream(  # pragma: no cover - compiled
     counters: IntArray,
     stop_changes: int,
 ) -> tuple[int, int, int]:
-    """Stream rows ``start, start+1, ...`` of ``X`` [N, d], ``y`` [N] through :func:`online_step`.
+    """Stream rows ``start, start+1, ...`` of ``X`` [N, d], ``y`` [N] through :func:`_step`.
 
     Stops after the row at which the basis set has changed ``stop_changes``
     times (an addition or a deletion each count one), or at the end.
@@ -864,5 +822,5 @@ def se_stream(  # pragma: no cover - compiled
         changes += added + (1 if deleted >= 0 else 0)
         if changes >= stop_changes:
             break
-    _mirror_lower(S, m)  # the steps keep the lower triangle only
+    mirror_lower(S, m)  # the steps keep the lower triangle only
     return t, m, changes

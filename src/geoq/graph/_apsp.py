@@ -484,24 +484,30 @@ def drop_index(M: FloatArray, n: int, v: int, fill: float) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
+def _wrapped_r2(x: FloatArray, Y: FloatArray, j: int, period: FloatArray) -> float:
+    """``|x - Y_j|^2`` [scalar]; dimension ``k`` wraps if ``period[k] > 0``."""
+    s = 0.0
+    for k in range(x.shape[0]):
+        diff = x[k] - Y[j, k]
+        p = period[k]
+        if p > 0.0:
+            diff = diff - p * np.rint(diff / p)
+        s += diff * diff
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
 def wrapped_squared_distances(X: FloatArray, Y: FloatArray, period: FloatArray) -> FloatArray:
     """``[N, d] x [M, d] -> [N, M]`` squared distances; dimension ``k`` wraps if ``period[k] > 0``.
 
     The wrapped difference is ``diff - p * round(diff / p)`` (round half to even),
     the convention of :class:`geoq.kernels.stationary.Euclidean`.
     """
-    N, M, d = X.shape[0], Y.shape[0], X.shape[1]
+    N, M = X.shape[0], Y.shape[0]
     out = np.empty((N, M))
     for i in range(N):
         for j in range(M):
-            s = 0.0
-            for k in range(d):
-                diff = X[i, k] - Y[j, k]
-                p = period[k]
-                if p > 0.0:
-                    diff = diff - p * np.rint(diff / p)
-                s += diff * diff
-            out[i, j] = s
+            out[i, j] = _wrapped_r2(X[i], Y, j, period)
     return out
 
 
@@ -550,20 +556,11 @@ def _row_r2_on_nodes(
     Returns the lowest index of the minimum (``np.argmin``), or -1 if the first
     ``n`` rows of ``BV`` are not the nodes ``X[:n]`` (the GP's basis is out of sync).
     """
-    d = x.shape[0]
-    for j in range(n):
-        for k in range(d):
-            if BV[j, k] != X[j, k]:
-                return -1
+    if not rows_equal(BV[:n], X, n):
+        return -1
     best = 0
     for j in range(n):
-        s = 0.0
-        for k in range(d):
-            diff = x[k] - X[j, k]
-            p = period[k]
-            if p > 0.0:
-                diff = diff - p * np.rint(diff / p)
-            s += diff * diff
+        s = _wrapped_r2(x, X, j, period)
         r2[j] = s
         if s < r2[best]:
             best = j
@@ -860,15 +857,8 @@ def squared_distances_row(
 ) -> None:
     """``r2[j]`` = wrapped ``|x - X_j|^2`` (as :func:`wrapped_squared_distances`) and
     ``neg[j] = -r2[j]``, ``j < n``."""
-    d = x.shape[0]
     for j in range(n):
-        s = 0.0
-        for k in range(d):
-            diff = x[k] - X[j, k]
-            p = period[k]
-            if p > 0.0:
-                diff = diff - p * np.rint(diff / p)
-            s += diff * diff
+        s = _wrapped_r2(x, X, j, period)
         r2[j] = s
         neg[j] = -s
 

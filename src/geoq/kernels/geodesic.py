@@ -430,12 +430,8 @@ class GraphDistance(BasisGraphDistance):
             cost = interpolated_row_weights(
                 W, log_rel, r2, n, _NEGLIGIBLE_LOG, self.normalize, self.attach, squared
             )
-        cache = self._split_cache
-        if cache is None or cache[0] != g.version:
-            self._split()
-            cache = self._split_cache
-            assert cache is not None
-        interpolated_row_exponent(W @ cache[1], W, g._P, n, cache[3], cost, self.sigma_sp, out)
+        Pf, _, unreachable = self._split()
+        interpolated_row_exponent(W @ Pf, W, g._P, n, unreachable, cost, self.sigma_sp, out)
         return out[:m]
 
     # -- Distance interface -----------------------------------------------------------------

@@ -7,6 +7,15 @@ Commands
     Reproduce every figure of the paper into ``DIR`` by calling
     :func:`geoq.experiments.reproduce.reproduce`; everything it does can be
     done from Python with that function.
+``geoq train --env ID --kernel K --timesteps N --seed S --out DIR``
+    Learn control with a :class:`geoq.agents.GPQAgent`
+    (:func:`geoq.experiments.control.train`).
+``geoq evaluate DIR/agent.npz --episodes N``
+    Deterministic evaluation episodes of a saved agent: mean return with its
+    95% interval and the success rate.
+``geoq bench-control --out DIR [--kernel K ...] [--seeds N] [--timesteps N] ...``
+    Kernels x seeds through the resumable sweep runner: CONTROL.md, control.csv
+    and learning curves (:func:`geoq.experiments.control.run_control_benchmark`).
 ``geoq version``
     Print the package version (also ``geoq --version``).
 ``geoq info``
@@ -29,7 +38,7 @@ from typing import Annotated, Any
 
 import typer
 
-__all__ = ["Backend", "Scale", "app", "main"]
+__all__ = ["Backend", "KernelChoice", "Scale", "app", "main"]
 
 
 class Scale(enum.StrEnum):
@@ -44,6 +53,15 @@ class Backend(enum.StrEnum):
 
     loky = "loky"
     dask = "dask"
+
+
+class KernelChoice(enum.StrEnum):
+    """Kernel of a GP Q-function agent."""
+
+    euclidean = "euclidean"
+    nearest = "nearest"
+    interpolated = "interpolated"
+    resistance = "resistance"
 
 
 app = typer.Typer(
@@ -240,6 +258,182 @@ def reproduce(
         typer.echo(f"geoq reproduce: error: {_one_line(exc)}", err=True)
         raise typer.Exit(1) from exc
     typer.echo(f"geoq reproduce: done; results in {out}")
+
+
+def _agent_config(config: Path | None) -> dict[str, Any]:
+    """GPQConfig overrides from a JSON file, checked up front (usage error if bad)."""
+    if config is None:
+        return {}
+    import json
+
+    from geoq.agents import GPQConfig
+
+    try:
+        data = json.loads(config.read_text())
+        if not isinstance(data, dict):
+            raise ValueError("the config must be a JSON object of GPQConfig fields")
+        if "kernel" in data:
+            raise ValueError("set the kernel with --kernel, not in the config")
+        GPQConfig.from_dict(data)  # validates names, types and ranges
+    except (ValueError, TypeError) as exc:
+        raise typer.BadParameter(_one_line(exc), param_hint="'--config'") from exc
+    return data
+
+
+_CONFIG_OPTION = typer.Option(
+    "--config",
+    metavar="FILE",
+    exists=True,
+    dir_okay=False,
+    help=(
+        'JSON object of agent settings (GPQConfig fields), e.g. {"exploration": "thompson", '
+        '"max_bv": 300}. Recorded in config.json.'
+    ),
+)
+
+
+@app.command()
+def train(
+    env: Annotated[str, typer.Option("--env", help="Gymnasium id of the task.")] = (
+        "geoq/PendulumSwingUp-v0"
+    ),
+    kernel: Annotated[
+        KernelChoice, typer.Option("--kernel", help="Kernel of the GP Q-function.")
+    ] = KernelChoice.euclidean,
+    timesteps: Annotated[
+        int, typer.Option("--timesteps", min=1, help="Environment steps to learn for.")
+    ] = 2_000,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of every random choice.")] = 0,
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            file_okay=False,
+            help="Output directory: learning_curve.csv/.png, agent.npz, config.json.",
+        ),
+    ] = Path("results/train"),
+    config: Annotated[Path | None, _CONFIG_OPTION] = None,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Show a progress bar on stderr.")
+    ] = True,
+) -> None:
+    """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
+    if str(out).strip() in ("", "."):
+        raise typer.BadParameter("give an output directory", param_hint="'--out'")
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    overrides = _agent_config(config)
+    try:
+        from geoq.experiments.control import train as run_train
+
+        agent = run_train(
+            env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
+            **overrides,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        typer.echo("geoq train: interrupted; nothing was written", err=True)
+        raise typer.Exit(130) from None
+    except Exception as exc:
+        typer.echo(f"geoq train: error: {_one_line(exc)}", err=True)
+        raise typer.Exit(1) from exc
+    last = agent.episodes[-1] if agent.episodes else None
+    tail = f"; last episode return {last.ret:.1f}" if last else ""
+    typer.echo(f"geoq train: {agent.num_timesteps} steps, {len(agent.episodes)} episodes{tail}; "
+               f"results in {out}")  # fmt: skip
+
+
+@app.command()
+def evaluate(
+    agent_path: Annotated[
+        Path,
+        typer.Argument(metavar="AGENT", exists=True, dir_okay=False, help="A saved agent.npz."),
+    ],
+    episodes: Annotated[
+        int, typer.Option("--episodes", min=1, help="Number of evaluation episodes.")
+    ] = 20,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the episodes' resets.")] = 0,
+    env: Annotated[
+        str | None, typer.Option("--env", help="Gymnasium id (default: the agent's own).")
+    ] = None,
+) -> None:
+    """Evaluate a saved agent: mean return with its 95% interval, and the success rate."""
+    try:
+        from geoq.agents import GPQAgent
+        from geoq.experiments.control import evaluate_agent
+
+        agent = GPQAgent.load(agent_path, env=env)
+        result = evaluate_agent(agent, env, episodes, seed)
+    except Exception as exc:
+        typer.echo(f"geoq evaluate: error: {_one_line(exc)}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo(result.summary())
+
+
+@app.command("bench-control")
+def bench_control(
+    out: Annotated[Path, typer.Option("--out", file_okay=False, help="Output directory.")] = Path(
+        "results/control"
+    ),
+    env: Annotated[str, typer.Option("--env", help="Gymnasium id of the task.")] = (
+        "geoq/PendulumSwingUp-v0"
+    ),
+    kernels: Annotated[
+        list[KernelChoice] | None,
+        typer.Option("--kernel", help="Kernel(s) to compare (repeat the option)."),
+    ] = None,
+    explorations: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--exploration",
+            help="Exploration mode(s) to compare: ucb, thompson, gaussian (repeat the option).",
+        ),
+    ] = None,
+    seeds: Annotated[int, typer.Option("--seeds", min=1, help="Seeds per setting.")] = 10,
+    timesteps: Annotated[int, typer.Option("--timesteps", min=1, help="Steps per run.")] = 3_000,
+    eval_every: Annotated[
+        int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
+    ] = 250,
+    eval_episodes: Annotated[
+        int, typer.Option("--eval-episodes", min=1, help="Episodes per evaluation.")
+    ] = 20,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")] = 1,
+    backend: Annotated[
+        Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
+    ] = Backend.loky,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
+    ] = None,
+    config: Annotated[Path | None, _CONFIG_OPTION] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
+) -> None:
+    """Benchmark the agent: steps to success for kernels x exploration modes x seeds (resumable)."""
+    from geoq.agents.acquisition import EXPLORATION_MODES
+
+    if scheduler is not None and backend is not Backend.dask:
+        raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
+    for mode in explorations or []:
+        if mode not in EXPLORATION_MODES:
+            raise typer.BadParameter(
+                f"{mode!r} is not one of {EXPLORATION_MODES}", param_hint="'--exploration'"
+            )
+    base = _agent_config(config)
+    configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
+    try:
+        from geoq.experiments.control import run_control_benchmark
+
+        run_control_benchmark(
+            out, env_id=env, kernels=[k.value for k in (kernels or [KernelChoice.euclidean])],
+            seeds=seeds, timesteps=timesteps, eval_every=eval_every,
+            eval_episodes=eval_episodes, configs=configs, jobs=jobs, backend=backend.value,
+            scheduler=scheduler, progress=progress,
+        )  # fmt: skip
+    except KeyboardInterrupt:
+        typer.echo("geoq bench-control: interrupted; finished cells are kept", err=True)
+        raise typer.Exit(130) from None
+    except Exception as exc:
+        typer.echo(f"geoq bench-control: error: {_one_line(exc)}", err=True)
+        raise typer.Exit(1) from exc
+    typer.echo(f"geoq bench-control: done; {out / 'CONTROL.md'}")
 
 
 @app.command()

@@ -17,7 +17,13 @@ from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
 from geoq.experiments.stats import mean_interval
 
-__all__ = ["KERNEL_STYLE", "plot_budget_curves", "plot_graphs", "plot_value_maps"]
+__all__ = [
+    "KERNEL_STYLE",
+    "plot_budget_curves",
+    "plot_graphs",
+    "plot_learning_curve",
+    "plot_value_maps",
+]
 
 #: Colour and label per kernel name, shared by every figure.
 KERNEL_STYLE: dict[str, dict[str, str]] = {
@@ -148,4 +154,35 @@ def plot_budget_curves(
         ax.set_xlabel("max number of basis vectors")
         ax.grid(alpha=0.3)
     ax_mse.legend(fontsize=8)
+    return fig
+
+
+def plot_learning_curve(
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    title: str,
+    ylabel: str = "episode return",
+) -> Figure:
+    """Learning curves: per label, ``(timesteps [n_seeds, n], values [n_seeds, n])``.
+
+    One seed: the curve itself. Several: the mean and its 95% interval over seeds.
+    """
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    ax = fig.subplots()
+    for label, (steps, values) in curves.items():
+        kernel = label.split("[")[0]
+        color = KERNEL_STYLE.get(kernel, {}).get("color")
+        x = np.asarray(steps, dtype=np.float64)[0]
+        v = np.atleast_2d(np.asarray(values, dtype=np.float64))
+        if v.shape[0] == 1:
+            ax.plot(x, v[0], marker="o", ms=3, color=color, label=label)
+            continue
+        stats = [mean_interval(v[:, j]) for j in range(v.shape[1])]
+        ax.plot(x, [s.mean for s in stats], color=color, label=f"{label} (n={v.shape[0]})")
+        ax.fill_between(
+            x, [s.low for s in stats], [s.high for s in stats], color=color, alpha=0.2, lw=0
+        )
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
     return fig

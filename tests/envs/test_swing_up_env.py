@@ -130,3 +130,43 @@ def test_step_before_reset_and_bad_constructor_args() -> None:
         PendulumSwingUpEnv(render_mode="human")
     with pytest.raises(ValueError, match="start_noise"):
         PendulumSwingUpEnv(start_noise=-1.0)
+
+
+def _episode_success(policy: object, seed: int) -> tuple[bool, list[dict[str, object]]]:
+    env = gym.make(PENDULUM_SWING_UP_ID)
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    infos = []
+    truncated = False
+    while not truncated:
+        action = np.atleast_1d(policy(obs[None, :], rng))  # type: ignore[operator]
+        obs, _, _, truncated, info = env.step(action)
+        infos.append(info)
+    return bool(infos[-1]["is_success"]), infos
+
+
+def test_is_success_reported_only_at_truncation_and_matches_a_brute_force_check() -> None:
+    from geoq.policies import default_policy
+
+    policy = default_policy()
+    for seed in range(3):
+        ok, infos = _episode_success(policy, seed)
+        assert all("is_success" not in info for info in infos[:-1])
+        assert ok  # the hand-made controller swings up and balances
+
+    # Brute force on a recorded trajectory: success iff |theta| < 0.3 in the last 50 states.
+    env = PendulumSwingUpEnv()  # no time limit: reports at the default horizon of 250
+    env.reset(options={"state": [0.0, 0.0]})
+    thetas, info = [], {}
+    for t in range(250):
+        torque = 0.0 if t < 195 else 5.0  # upright, then pushed over near the end
+        obs, _, _, _, info = env.step(np.array([torque]))
+        thetas.append(obs[0])
+    expected = bool(np.all(np.abs(np.array(thetas[-50:])) < 0.3))
+    assert info["is_success"] is expected
+    assert expected is False  # the push topples it within the window
+
+
+def test_a_pendulum_left_hanging_fails() -> None:
+    ok, _ = _episode_success(lambda s, rng: np.zeros(1), seed=0)
+    assert not ok

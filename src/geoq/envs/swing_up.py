@@ -17,7 +17,15 @@ from geoq.envs.pendulum import (
     wrap_angle,
 )
 
-__all__ = ["PendulumSwingUpEnv"]
+__all__ = ["SUCCESS_ANGLE", "SUCCESS_WINDOW", "PendulumSwingUpEnv"]
+
+#: Success on the swing-up: ``|theta| < SUCCESS_ANGLE`` rad in every one of the
+#: episode's last ``SUCCESS_WINDOW`` steps (the states after each step).
+SUCCESS_ANGLE = 0.3
+SUCCESS_WINDOW = 50
+#: Episode length used for the success report when the env was made without a
+#: time limit (``gymnasium.make`` sets 250, see ``geoq.envs``).
+_DEFAULT_HORIZON = 250
 
 
 class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
@@ -81,6 +89,13 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
     `geoq/PendulumSwingUp-v0` with a time limit of 250 steps (12.5 s, the length
     of the paper's GP training roll-outs), after which `truncated` is `True`.
 
+    ## Success
+
+    At the episode's last step (the time limit of the env's spec, 250 when made
+    directly) `info["is_success"]` is `True` when `|theta| < 0.3` rad in each of
+    the last 50 states reached (Stable-Baselines3's convention). The hand-made
+    controller of `geoq.policies` succeeds in every episode by this measure.
+
     ## Arguments
 
     - `params`: a `geoq.envs.PendulumParams` (defaults above); the spaces follow
@@ -122,6 +137,8 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         high = np.array([np.pi, p.max_speed], dtype=np.float64)
         self.observation_space = spaces.Box(low=-high, high=high, dtype=np.float64)
         self.state: FloatArray | None = None
+        self._steps = 0
+        self._upright_run = 0  # consecutive steps ending with |theta| < SUCCESS_ANGLE
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -138,10 +155,16 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
             self.state = sample_hanging_states(self.np_random, 1, self.start_noise)[0]
         else:
             self.state = self._check_state(start)
+        self._steps = 0
+        self._upright_run = 0
         return self.state.copy(), {}
 
     def step(self, action: Any) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
-        """Apply one torque; return ``(obs, cos(theta_before), False, False, {})``."""
+        """Apply one torque; return ``(obs, cos(theta_before), False, False, info)``.
+
+        ``info`` is empty except at the episode's last step, where it holds
+        ``is_success`` (see the class docstring).
+        """
         if self.state is None:
             raise RuntimeError("call reset() before step()")
         u = np.asarray(action, dtype=np.float64)
@@ -151,7 +174,17 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
             raise ValueError(f"action {u!r} is not finite; pass a torque in [-5, 5]")
         next_state, reward = pendulum_step(self.state, u.reshape(()), self.params)
         self.state = next_state
-        return next_state.copy(), float(reward), False, False, {}
+        self._steps += 1
+        upright = abs(float(next_state[0])) < SUCCESS_ANGLE
+        self._upright_run = self._upright_run + 1 if upright else 0
+        info: dict[str, Any] = {}
+        if self._steps == self._horizon():
+            info["is_success"] = self._upright_run >= SUCCESS_WINDOW
+        return next_state.copy(), float(reward), False, False, info
+
+    def _horizon(self) -> int:
+        limit = self.spec.max_episode_steps if self.spec is not None else None
+        return int(limit) if limit is not None else _DEFAULT_HORIZON
 
     def _check_state(self, state: Any) -> FloatArray:
         try:

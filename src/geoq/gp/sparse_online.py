@@ -725,6 +725,14 @@ class SparseOnlineGP:
     # ----------------------------------------------------------- persistence
     def save(self, path: str | PathLike[str]) -> None:
         """Save the model (kernel included) as a versioned ``.npz`` without pickle."""
+        save_archive(path, _FORMAT_KIND, _FORMAT_VERSION, self.to_arrays())
+
+    def to_arrays(self) -> dict[str, Any]:
+        """The model (kernel included) as plain arrays: what :meth:`save` writes.
+
+        For embedding a GP in a larger archive (e.g. an agent's), in the current
+        format version; :meth:`from_arrays` reads it back.
+        """
         m = self._m
         arrays: dict[str, Any] = {
             "noise": np.float64(self.noise),
@@ -750,12 +758,29 @@ class SparseOnlineGP:
         arrays["novelty_clipped_at_refit"] = np.int64(self._novclip_at_refit)
         arrays["max_q_drift"] = np.float64(self._max_q_drift)
         arrays.update(kernel_to_arrays(self.kernel))
-        save_archive(path, _FORMAT_KIND, _FORMAT_VERSION, arrays)
+        return arrays
 
     @classmethod
     def load(cls, path: str | PathLike[str]) -> SparseOnlineGP:
         """Load a model written by :meth:`save` (basis hooks are *not* replayed)."""
         version, a = load_archive(path, _FORMAT_KIND, _FORMAT_VERSION)
+        return cls.from_arrays(a, version=version, source=path)
+
+    @classmethod
+    def from_arrays(
+        cls,
+        a: dict[str, np.ndarray],
+        *,
+        version: int = 0,
+        source: str | PathLike[str] = "<arrays>",
+    ) -> SparseOnlineGP:
+        """Inverse of :meth:`to_arrays`; ``version`` of the format (default: the current one).
+
+        Raises :class:`~geoq._io.ArchiveError` naming ``source`` on missing or
+        inconsistent entries.
+        """
+        version = version or _FORMAT_VERSION
+        path = source
         get = _archive_getter(a, path)
         try:
             kernel = kernel_from_arrays(a)

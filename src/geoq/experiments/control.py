@@ -1,0 +1,321 @@
+"""Control experiments: train an agent, evaluate it, benchmark kernels x seeds (data only).
+
+* :func:`evaluate_agent`: deterministic episodes from the env's default reset,
+  run in lockstep so that each step is one batched :meth:`GPQAgent.predict`.
+* :func:`train` (``geoq train``): learn, then write ``learning_curve.csv``,
+  ``learning_curve.png``, ``agent.npz`` and ``config.json`` atomically.
+* :func:`control_cell` / :func:`run_control_benchmark` (``geoq bench-control``):
+  one sweep cell = one (agent settings, seed); the agent learns for the whole
+  budget and is evaluated at every checkpoint (``eval_every`` steps) with
+  ``eval_episodes`` deterministic episodes; cells go through the resumable
+  sweep runner (joblib locally, Dask on a cluster).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from geoq._io import atomic_write_json, atomic_write_text
+from geoq.agents import GPQAgent
+from geoq.experiments.stats import mean_interval
+
+__all__ = [
+    "ControlCell",
+    "Evaluation",
+    "control_cell",
+    "control_report",
+    "evaluate_agent",
+    "run_control_benchmark",
+    "steps_to_success",
+    "train",
+]
+
+#: Columns of ``learning_curve.csv``.
+CURVE_COLUMNS = ("timesteps", "episode", "return", "success")
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Deterministic evaluation episodes of an agent.
+
+    Attributes
+    ----------
+    returns : undiscounted return of each episode ``[n]``.
+    successes : ``info["is_success"]`` at each episode's end (1/0), NaN where unreported.
+    """
+
+    returns: np.ndarray
+    successes: np.ndarray
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of successful episodes (NaN if the env reports no success)."""
+        s = self.successes[np.isfinite(self.successes)]
+        return float(np.mean(s)) if s.size else float("nan")
+
+    def summary(self) -> str:
+        ci = mean_interval(self.returns)
+        rate = self.success_rate
+        rate_text = "n/a" if math.isnan(rate) else f"{rate:.2f}"
+        return (
+            f"mean return {ci.mean:.2f} (95% interval [{ci.low:.2f}, {ci.high:.2f}], "
+            f"{len(self.returns)} episodes); success rate {rate_text}"
+        )
+
+
+def evaluate_agent(
+    agent: GPQAgent, env_id: str | None = None, n_episodes: int = 20, seed: int = 0
+) -> Evaluation:
+    """Run ``n_episodes`` deterministic (greedy) episodes from the env's default reset.
+
+    Episode ``i`` starts from ``reset(seed=SeedSequence(seed).spawn(n)[i])``; all
+    episodes advance in lockstep, one batched ``predict`` per step.
+    """
+    if n_episodes < 1:
+        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
+    env_id = env_id or agent.env_id
+    if not env_id:
+        raise ValueError("the agent has no registered env id; pass env_id=")
+    envs = [gymnasium.make(env_id) for _ in range(n_episodes)]
+    seeds = np.random.SeedSequence(seed).spawn(n_episodes)
+    obs = np.stack(
+        [e.reset(seed=int(s.generate_state(1)[0]))[0] for e, s in zip(envs, seeds, strict=True)]
+    )
+    returns = np.zeros(n_episodes)
+    successes = np.full(n_episodes, np.nan)
+    active = np.ones(n_episodes, dtype=bool)
+    while np.any(active):
+        idx = np.flatnonzero(active)
+        actions, _ = agent.predict(obs[idx].astype(np.float64), deterministic=True)
+        for j, i in enumerate(idx):
+            o, r, terminated, truncated, info = envs[i].step(
+                actions[j].astype(envs[i].action_space.dtype)
+            )
+            obs[i] = o
+            returns[i] += float(r)
+            if terminated or truncated:
+                active[i] = False
+                if "is_success" in info:
+                    successes[i] = float(bool(info["is_success"]))
+    for e in envs:
+        e.close()
+    return Evaluation(returns=returns, successes=successes)
+
+
+def _curve_rows(agent: GPQAgent) -> list[dict[str, Any]]:
+    return [
+        {"timesteps": e.timesteps, "episode": e.episode, "return": e.ret,
+         "success": "" if math.isnan(e.success) else int(e.success)}
+        for e in agent.episodes
+    ]  # fmt: skip
+
+
+def train(
+    env_id: str,
+    out: str | Path,
+    *,
+    kernel: str = "euclidean",
+    timesteps: int = 2_000,
+    seed: int = 0,
+    progress: bool = False,
+    **config: Any,
+) -> GPQAgent:
+    """Learn with a fresh :class:`GPQAgent` and write its outputs into ``out``.
+
+    Writes ``learning_curve.csv`` (``timesteps, episode, return, success`` per
+    training episode), ``learning_curve.png``, ``agent.npz`` and
+    ``config.json``, each atomically. Returns the agent.
+    """
+    from geoq import __version__
+    from geoq.experiments.reproduce import save_figure, write_csv
+    from geoq.plotting import plot_learning_curve
+
+    out = Path(out)
+    agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
+    agent.learn(timesteps, progress_bar=progress)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = _curve_rows(agent)
+    write_csv(out / "learning_curve.csv", rows, CURVE_COLUMNS)
+    ts = np.array([r["timesteps"] for r in rows], dtype=np.float64)
+    rets = np.array([r["return"] for r in rows], dtype=np.float64)
+    save_figure(
+        plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id),
+        out / "learning_curve.png",
+    )
+    agent.save(out / "agent.npz")
+    atomic_write_json(
+        out / "config.json",
+        {"env": env_id, "seed": seed, "timesteps": timesteps, "geoq_version": __version__,
+         "agent": agent.config.as_dict(), "scaling": agent.scaling.as_dict()},
+    )  # fmt: skip
+    return agent
+
+
+# --------------------------------------------------------------------------- benchmark
+@dataclass(frozen=True)
+class ControlCell:
+    """One benchmark run: an agent's settings and a seed, learning for ``timesteps`` steps."""
+
+    env_id: str
+    kernel: str
+    seed: int
+    timesteps: int
+    eval_every: int
+    eval_episodes: int
+    config: Mapping[str, Any] = field(default_factory=dict)
+    """Other :class:`~geoq.agents.GPQConfig` fields (e.g. ``exploration``)."""
+
+    @property
+    def label(self) -> str:
+        extra = ",".join(f"{k}={v}" for k, v in sorted(self.config.items()))
+        return self.kernel + (f"[{extra}]" if extra else "")
+
+
+def control_cell(cell: ControlCell) -> dict[str, Any]:
+    """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
+
+    Returns a row with the checkpoints, the evaluation's mean return and
+    success rate at each, the training curve and the wall time of learning.
+    """
+    import time
+
+    agent = GPQAgent(cell.env_id, kernel=cell.kernel, seed=cell.seed, **dict(cell.config))  # type: ignore[arg-type]
+    checkpoints, eval_returns, eval_success = [], [], []
+    learn_seconds = 0.0
+    while agent.num_timesteps < cell.timesteps:
+        step = min(cell.eval_every, cell.timesteps - agent.num_timesteps)
+        t0 = time.perf_counter()
+        agent.learn(step)
+        learn_seconds += time.perf_counter() - t0
+        ev = evaluate_agent(agent, cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed)
+        checkpoints.append(agent.num_timesteps)
+        eval_returns.append(float(np.mean(ev.returns)))
+        eval_success.append(ev.success_rate)
+    return {
+        "label": cell.label,
+        "kernel": cell.kernel,
+        "seed": cell.seed,
+        "checkpoints": checkpoints,
+        "eval_return": eval_returns,
+        "eval_success": eval_success,
+        "train_timesteps": [e.timesteps for e in agent.episodes],
+        "train_return": [e.ret for e in agent.episodes],
+        "learn_seconds": learn_seconds,
+        "ms_per_step": 1e3 * learn_seconds / max(agent.num_timesteps, 1),
+        "n_bv": agent.gp.n_bv,
+    }
+
+
+def steps_to_success(row: Mapping[str, Any], threshold: float = 0.9) -> float:
+    """First checkpoint whose success rate is >= ``threshold`` (inf if none)."""
+    for t, s in zip(row["checkpoints"], row["eval_success"], strict=True):
+        if s is not None and np.isfinite(s) and s >= threshold:
+            return float(t)
+    return math.inf
+
+
+def _median_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Median with a distribution-free (binomial order-statistic) interval."""
+    from scipy import stats
+
+    v = np.sort(np.asarray(values, dtype=np.float64))
+    n = v.size
+    med = float(np.median(v))
+    if n < 2:
+        return med, -math.inf, math.inf
+    lo_k = int(stats.binom.ppf((1 - level) / 2, n, 0.5))
+    hi_k = int(stats.binom.isf((1 - level) / 2, n, 0.5))
+    lo = float(v[lo_k - 1]) if lo_k >= 1 else -math.inf
+    hi = float(v[hi_k]) if hi_k < n else math.inf
+    return med, lo, hi
+
+
+def control_report(rows: Sequence[Mapping[str, Any]], title: str, threshold: float = 0.9) -> str:
+    """CONTROL.md: steps to success and final evaluation per agent setting, over seeds."""
+    labels = list(dict.fromkeys(r["label"] for r in rows))
+    lines = [
+        f"# {title}",
+        "",
+        f"Steps to a success rate >= {threshold} (deterministic evaluation episodes from the "
+        "default reset, checked at every checkpoint): median over seeds with a distribution-free "
+        "95% interval (order statistics), `inf` = not reached within the budget. Returns: mean "
+        "with a Student-t 95% interval over seeds.",
+        "",
+        "| agent | seeds | steps to success (median [95%]) | reached | final success | "
+        "final return | ms / step |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label in labels:
+        sel = [r for r in rows if r["label"] == label]
+        steps = [steps_to_success(r, threshold) for r in sel]
+        med, lo, hi = _median_interval(steps)
+        final_s = mean_interval([r["eval_success"][-1] for r in sel])
+        final_r = mean_interval([r["eval_return"][-1] for r in sel])
+        ms = float(np.median([r["ms_per_step"] for r in sel]))
+        reached = sum(math.isfinite(s) for s in steps)
+        lines.append(
+            f"| {label} | {len(sel)} | {med:g} [{lo:g}, {hi:g}] | {reached}/{len(sel)} | "
+            f"{final_s.mean:.2f} [{final_s.low:.2f}, {final_s.high:.2f}] | "
+            f"{final_r.mean:.1f} [{final_r.low:.1f}, {final_r.high:.1f}] | {ms:.2f} |"
+        )
+    lines.append("")
+    return "\n".join(lines)
+
+
+def run_control_benchmark(
+    out: str | Path,
+    *,
+    env_id: str,
+    kernels: Sequence[str],
+    seeds: int,
+    timesteps: int,
+    eval_every: int,
+    eval_episodes: int = 20,
+    configs: Sequence[Mapping[str, Any]] = ({},),
+    jobs: int = 1,
+    backend: str = "loky",
+    scheduler: str | None = None,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Every (kernel, config, seed) cell through the resumable sweep runner; writes
+    ``control.csv``, ``learning_curves.png`` and ``CONTROL.md`` into ``out``."""
+    from geoq.experiments.reproduce import save_figure, write_csv
+    from geoq.experiments.sweep import run_sweep
+    from geoq.plotting import plot_learning_curve
+
+    out = Path(out)
+    cells = [
+        ControlCell(env_id, k, s, timesteps, eval_every, eval_episodes, dict(c))
+        for k in kernels for c in configs for s in range(seeds)
+    ]  # fmt: skip
+    rows = run_sweep(
+        cells, control_cell, out / "cells", jobs=jobs, backend=backend,
+        scheduler=scheduler, progress=progress, desc="control",
+    )  # fmt: skip
+    flat = [
+        {"label": r["label"], "kernel": r["kernel"], "seed": r["seed"], "timesteps": t,
+         "eval_return": ret, "eval_success": s, "ms_per_step": r["ms_per_step"]}
+        for r in rows
+        for t, ret, s in zip(r["checkpoints"], r["eval_return"], r["eval_success"], strict=True)
+    ]  # fmt: skip
+    write_csv(out / "control.csv", flat)
+    curves: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for label in dict.fromkeys(r["label"] for r in rows):
+        sel = [r for r in rows if r["label"] == label]
+        curves[label] = (
+            np.array([r["checkpoints"] for r in sel], dtype=np.float64),
+            np.array([r["eval_success"] for r in sel], dtype=np.float64),
+        )
+    save_figure(
+        plot_learning_curve(curves, env_id, ylabel="evaluation success rate"),
+        out / "learning_curves.png",
+    )
+    atomic_write_text(out / "CONTROL.md", control_report(rows, f"Control benchmark on {env_id}"))
+    return rows

@@ -1,0 +1,90 @@
+"""What an agent or learner needs to know about a task beyond its Gymnasium env.
+
+One :class:`TaskInfo` record per known task: which observation dimensions are
+angles (periodic, with their period in raw units), and a readable name per
+dimension. Unknown tasks get no periodic dimension unless the caller declares
+one; input scaling comes from the env's space bounds (:func:`box_scaling`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import gymnasium
+import numpy as np
+
+from geoq.envs import PENDULUM_SWING_UP_ID
+from geoq.learners.scaling import InputScaling
+
+__all__ = ["KNOWN_TASKS", "TaskInfo", "box_scaling", "task_info"]
+
+
+@dataclass(frozen=True)
+class TaskInfo:
+    """Per-task facts that are not in the env's spaces.
+
+    Attributes
+    ----------
+    periods : wrap-around period of each observation dimension in raw units
+        (``0`` = not periodic), ``[d_s]``.
+    names : readable names of the observation dimensions (for reports).
+    """
+
+    periods: tuple[float, ...]
+    names: tuple[str, ...]
+
+
+#: Tasks whose periodic dimensions are known. Gymnasium's ``Pendulum-v1``
+#: observes ``[cos, sin, omega]``: nothing in it wraps.
+KNOWN_TASKS: Mapping[str, TaskInfo] = {
+    PENDULUM_SWING_UP_ID: TaskInfo(periods=(2.0 * np.pi, 0.0), names=("theta", "omega")),
+    "Pendulum-v1": TaskInfo(periods=(0.0, 0.0, 0.0), names=("cos", "sin", "omega")),
+    "MountainCarContinuous-v0": TaskInfo(periods=(0.0, 0.0), names=("position", "velocity")),
+}
+
+
+def task_info(env: gymnasium.Env, periods: Sequence[float] | None = None) -> TaskInfo:
+    """The :class:`TaskInfo` of ``env``: declared ``periods`` first, then the known tasks.
+
+    ``periods`` (raw units, one per observation dimension, ``0`` = not
+    periodic) overrides what is known. An unknown task without ``periods`` has
+    none.
+    """
+    space = env.observation_space
+    d = int(np.prod(space.shape)) if space.shape is not None else 0
+    spec = env.spec
+    known = KNOWN_TASKS.get(spec.id) if spec is not None else None
+    names = known.names if known is not None else tuple(f"s{i}" for i in range(d))
+    if periods is None:
+        return known if known is not None else TaskInfo(periods=(0.0,) * d, names=names)
+    p = tuple(float(v) for v in periods)
+    if len(p) != d or not all(np.isfinite(v) and v >= 0 for v in p):
+        raise ValueError(
+            f"periods must give one finite period >= 0 per observation dimension ({d}), got {p}"
+        )
+    return TaskInfo(periods=p, names=names)
+
+
+def box_scaling(
+    obs_space: gymnasium.spaces.Box, action_space: gymnasium.spaces.Box, info: TaskInfo
+) -> InputScaling:
+    """Input scaling of ``[s, a]`` from the spaces' bounds: each dimension's half-range.
+
+    Every input then spans about ``[-1, 1]`` (an angle of period ``2 pi`` in
+    ``[-pi, pi]`` spans ``[-1, 1]`` with period 2). Bounds must be finite.
+    """
+    lo = np.concatenate([obs_space.low.ravel(), action_space.low.ravel()]).astype(np.float64)
+    hi = np.concatenate([obs_space.high.ravel(), action_space.high.ravel()]).astype(np.float64)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ValueError(
+            "the observation or action space has infinite bounds; geoq scales inputs by the "
+            "space bounds, so wrap the env in gymnasium.wrappers.ClipObservation or pass "
+            "scaling= with a finite scale per dimension"
+        )
+    half = 0.5 * (hi - lo)
+    half = np.where(half > 0, half, 1.0)
+    d_a = int(np.prod(action_space.shape))
+    periods = (*info.periods, *(0.0,) * d_a)
+    names = (*info.names, *(f"a{i}" for i in range(d_a)))
+    return InputScaling(tuple(float(h) for h in half), periods, names)

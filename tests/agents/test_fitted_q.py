@@ -1,0 +1,87 @@
+"""Fitted Q-iteration on a fixed basis: value iteration oracle and the GP's own refit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from geoq.agents.fitted_q import fitted_q_sweeps
+from geoq.gp import SparseOnlineGP
+from geoq.kernels import SquaredExponential
+
+N_STATES, GAMMA = 11, 0.9
+ACTIONS = np.array([-1.0, 1.0])
+
+
+def _chain() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every (state, action) of a deterministic chain: -1 per step, terminal at the right end."""
+    s = np.repeat(np.arange(N_STATES), 2)
+    a = np.tile(ACTIONS, N_STATES)
+    s2 = np.clip(s + a.astype(int), 0, N_STATES - 1)
+    X = np.column_stack([s / (N_STATES - 1), a])
+    Xn = np.column_stack([np.repeat(s2 / (N_STATES - 1), 2), np.tile(ACTIONS, len(s2))])
+    rewards = -np.ones(len(s))
+    continues = (s2 != N_STATES - 1).astype(float)
+    return X, Xn, rewards, continues, s2
+
+
+def _value_iteration() -> np.ndarray:
+    """Q*(s, a) by brute-force value iteration, in the order of :func:`_chain`."""
+    _, _, rewards, continues, s2 = _chain()
+    q = np.zeros(len(rewards))
+    for _ in range(500):
+        v = q.reshape(N_STATES, 2).max(axis=1)
+        q = rewards + GAMMA * continues * v[s2]
+    return q
+
+
+def _features(kernel: SquaredExponential, X: np.ndarray, Xn: np.ndarray, bv: np.ndarray):
+    R = scipy.linalg.cholesky(kernel(bv), lower=False)
+    V = scipy.linalg.solve_triangular(R, kernel(X, bv).T, trans="T")
+    return V, kernel(Xn, bv), R
+
+
+def test_interpolating_basis_gives_the_optimal_q_of_a_deterministic_chain() -> None:
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.03, 0.5]))
+    V, Kn, R = _features(kernel, X, Xn, X)
+    res = fitted_q_sweeps(
+        V, Kn, R, 1e-10, rewards, continues, GAMMA, np.zeros(len(rewards)),
+        y_mean=-5.0, y_scale=3.0, max_sweeps=500, tol=1e-10,
+    )  # fmt: skip
+    np.testing.assert_allclose(res.targets, _value_iteration(), atol=1e-6)
+    assert res.sweeps < 500 and res.max_change <= 1e-10
+
+
+def test_one_sweep_equals_bootstrapping_from_the_gp_refit() -> None:
+    """The whitened sweep is the DTC posterior of SparseOnlineGP.refit on the same basis."""
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.2, 0.8]))
+    rng = np.random.default_rng(0)
+    gp = SparseOnlineGP(kernel, noise=0.05, max_bv=8).fit(X, rng.normal(size=len(X)))
+    bv = gp.basis_vectors
+    y0 = rng.normal(size=len(X)) * 2 - 3
+    y_mean, y_scale = -3.0, 2.0
+    gp.refit(X, (y0 - y_mean) / y_scale)
+    q_next = y_mean + y_scale * gp.predict(Xn).reshape(len(X), 2).max(axis=1)
+    expected = rewards + GAMMA * continues * q_next
+    V, Kn, R = _features(kernel, X, Xn, bv)
+    res = fitted_q_sweeps(
+        V, Kn, R, 0.05, rewards, continues, GAMMA, y0,
+        y_mean=y_mean, y_scale=y_scale, max_sweeps=1, tol=0.0,
+    )  # fmt: skip
+    assert res.sweeps == 1
+    np.testing.assert_allclose(res.targets, expected, rtol=1e-9, atol=1e-9)
+
+
+def test_bounds_clip_every_target() -> None:
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.03, 0.5]))
+    V, Kn, R = _features(kernel, X, Xn, X)
+    res = fitted_q_sweeps(
+        V, Kn, R, 1e-10, rewards, continues, GAMMA, np.zeros(len(rewards)),
+        y_mean=0.0, y_scale=1.0, max_sweeps=500, tol=1e-10, bounds=(-3.0, -1.0),
+    )  # fmt: skip
+    assert res.targets.min() >= -3.0 and res.targets.max() <= -1.0
+    assert res.targets.min() == pytest.approx(-3.0)  # far states are clipped

@@ -1,0 +1,128 @@
+"""GPQAgent: learns a task with a known optimal policy; API, determinism, persistence."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+from tests.agents._tasks import PointToGoal, steps_to_goal
+
+import geoq  # noqa: F401  (registers the envs)
+from geoq._io import ArchiveError
+from geoq.agents import GPQAgent, GPQConfig
+
+KERNELS = ("euclidean", "nearest", "interpolated", "resistance")
+
+
+def _agent(seed: int = 0, **kw: object) -> GPQAgent:
+    kw.setdefault("max_bv", 60)
+    return GPQAgent(PointToGoal(), seed=seed, gamma=0.9, **kw)  # type: ignore[arg-type]
+
+
+def test_learns_the_optimal_policy_of_a_point_to_goal_task() -> None:
+    agent = _agent().learn(400)
+    for start in (-1.0, -0.6, -0.2, 0.2):
+        optimal = steps_to_goal(lambda obs: np.array([1.0]), start)
+        learned = steps_to_goal(lambda obs: agent.predict(obs)[0], start)
+        assert learned <= optimal + 1, (start, learned, optimal)
+    # The learned greedy action points at the goal from the left.
+    actions, _ = agent.predict(np.array([[-0.9], [-0.3], [0.3]]))
+    assert np.all(actions > 0.5)
+
+
+def test_an_untrained_agent_does_not_solve_the_task() -> None:
+    """The check above can fail: before learning, the greedy action is arbitrary."""
+    agent = _agent()
+    assert steps_to_goal(lambda obs: agent.predict(obs)[0], -1.0) > 18
+
+
+def test_same_seed_same_learning_curve_and_actions() -> None:
+    a, b = _agent(seed=3).learn(150), _agent(seed=3).learn(150)
+    assert a.episodes == b.episodes
+    for x, y in zip(a.buffer.arrays(), b.buffer.arrays(), strict=True):
+        np.testing.assert_array_equal(x, y)
+    obs = np.linspace(-1, 1, 9)[:, None]
+    np.testing.assert_array_equal(a.predict(obs)[0], b.predict(obs)[0])
+    c = _agent(seed=4).learn(150)
+    assert not np.array_equal(c.buffer.arrays()[0], a.buffer.arrays()[0])
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_save_load_round_trip_acts_identically(kernel: str, tmp_path: Path) -> None:
+    agent = _agent(kernel=kernel, max_bv=30).learn(80)
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    loaded = GPQAgent.load(path, env=PointToGoal())
+    obs = np.linspace(-1, 1, 11)[:, None]
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+    assert loaded.config == agent.config and loaded.episodes == agent.episodes
+    assert loaded.num_timesteps == agent.num_timesteps == 80
+    # Both continue identically (generator state and env seeding saved).
+    agent.learn(40)
+    loaded.learn(40)
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+
+
+def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
+    agent = _agent(max_bv=20).learn(30)
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(path.read_bytes()[:-200])
+    with pytest.raises(ArchiveError):
+        GPQAgent.load(truncated)
+    # Tamper: candidate actions outside the action box.
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays["candidates"] = arrays["candidates"] * 10
+    tampered = tmp_path / "tampered.npz"
+    np.savez(tampered, **arrays)
+    with pytest.raises(ArchiveError, match="inconsistent"):
+        GPQAgent.load(tampered)
+    with zipfile.ZipFile(path) as zf:
+        assert all(not name.endswith(".pkl") for name in zf.namelist())
+
+
+def test_predict_validates_observations_and_stays_in_the_box() -> None:
+    agent = _agent().learn(50)
+    action, state = agent.predict(np.array([0.1]))
+    assert state is None and action.shape == (1,) and -1.0 <= action[0] <= 1.0
+    actions, _ = agent.predict(np.linspace(-1, 1, 5)[:, None], deterministic=False)
+    assert actions.shape == (5, 1) and np.all(np.abs(actions) <= 1.0)
+    for bad, match in (([np.nan], "NaN"), ([0.1, 0.2], "shape"), ([[[0.1]]], "shape")):
+        with pytest.raises(ValueError, match=match):
+            agent.predict(np.array(bad))
+    with pytest.raises(ValueError, match="complex"):
+        agent.predict(np.array([0.1 + 1j]))
+
+
+def test_swing_up_agent_acts_in_the_torque_box() -> None:
+    agent = GPQAgent("geoq/PendulumSwingUp-v0", max_bv=40, seed=0, train_every=50).learn(60)
+    obs = np.column_stack([np.linspace(-np.pi, np.pi, 7), np.linspace(-8, 8, 7)])
+    actions, _ = agent.predict(obs)
+    assert actions.shape == (7, 1) and np.all(np.abs(actions) <= 5.0)
+    assert agent.scaling.periods[0] == pytest.approx(2 * np.pi)  # the angle wraps
+
+
+def test_unsupported_envs_and_arguments_raise() -> None:
+    with pytest.raises(ValueError, match="Box action space"):
+        GPQAgent("CartPole-v1")
+    dict_env = PointToGoal()
+    dict_env.observation_space = gymnasium.spaces.Dict(  # type: ignore[assignment]
+        {"x": gymnasium.spaces.Box(-1, 1, (1,))}
+    )
+    with pytest.raises(ValueError, match="Box observation space"):
+        GPQAgent(dict_env)
+    with pytest.raises(ValueError, match="kernel"):
+        GPQAgent(PointToGoal(), kernel="rbf")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="gamma"):
+        GPQAgent(PointToGoal(), gamma=1.0)
+    with pytest.raises(TypeError, match="unknown"):
+        GPQAgent(PointToGoal(), learning_rate=1e-3)
+    with pytest.raises(ValueError, match="lengthscale"):
+        GPQAgent(PointToGoal(), lengthscale=(0.1, 0.2, 0.3))
+    with pytest.raises(ValueError, match="unknown GPQConfig"):
+        GPQConfig.from_dict({"kernel": "euclidean", "bogus": 1})

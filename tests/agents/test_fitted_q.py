@@ -85,3 +85,18 @@ def test_bounds_clip_every_target() -> None:
     )  # fmt: skip
     assert res.targets.min() >= -3.0 and res.targets.max() <= -1.0
     assert res.targets.min() == pytest.approx(-3.0)  # far states are clipped
+
+
+def test_active_candidate_sweeps_reach_the_fixed_point_of_full_sweeps() -> None:
+    """Pruned sweeps (best 1 of 2 candidates between full sweeps) end where full sweeps end."""
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
+    rng = np.random.default_rng(1)
+    gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, rng.normal(size=len(X)))
+    V, Kn, R = _features(kernel, X, Xn, gp.basis_vectors)
+    common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=2_000, tol=1e-11)
+    args = (V, Kn, R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
+    full = fitted_q_sweeps(*args, **common, n_active=2, refresh_every=1)  # type: ignore[arg-type]
+    pruned = fitted_q_sweeps(*args, **common, n_active=1, refresh_every=7)  # type: ignore[arg-type]
+    assert full.sweeps < 2_000 and pruned.sweeps < 2_000
+    np.testing.assert_allclose(pruned.targets, full.targets, atol=1e-9)

@@ -16,9 +16,10 @@ candidate actions, and ``B = sigma0^2 I + V V^T``::
 
     mu = B^{-1} V y,        Q(s'_i, a'_k) = (K' R^{-1} mu)_{ik}
 
-so a sweep costs a few O(m^2) triangular solves and one matrix-vector product
-with ``K'`` (never whitened: that would cost O(N K m^2) once per phase), all
-factors computed once per phase: hundreds of sweeps cost about one refit. Sweeps stop when no target
+so with ``M = R^{-1} B^{-1} V`` [m, N] formed once per phase a sweep is two
+matrix-vector products (``K'`` is never whitened: that would cost O(N K m^2)),
+and most sweeps use only each transition's few best candidates (see
+``n_active``): hundreds of sweeps cost about one refit. Sweeps stop when no target
 moves by more than ``tol`` (in target units) or after ``max_sweeps``.
 
 Targets are in *standardised* units ``z = (y - y_mean) / y_scale``; the
@@ -69,6 +70,8 @@ def fitted_q_sweeps(
     max_sweeps: int,
     tol: float,
     bounds: tuple[float, float] = (-np.inf, np.inf),
+    n_active: int = 3,
+    refresh_every: int = 10,
 ) -> FittedQResult:
     """Iterate ``y <- r + gamma c max_a' Q_y(s', a')`` with the DTC posterior on a fixed basis.
 
@@ -88,20 +91,46 @@ def fitted_q_sweeps(
     bounds : every target is clipped to ``[lo, hi]`` (return units): the range of
         discounted returns of the rewards seen. Kernel regression is not a
         non-expansion, so the iteration can diverge without it.
+    n_active, refresh_every : the max over candidates is taken over every
+        candidate on a *full* sweep, which also keeps each transition's
+        ``n_active`` best candidates; the sweeps in between take the max over those
+        only (the argmax moves slowly, and these sweeps cost ``n_active / K`` of a
+        full one). A full sweep runs every ``refresh_every`` sweeps and whenever a
+        sweep changes no target by more than ``tol``; only a full sweep can end
+        the iteration, so the fixed point is the one of the max over all candidates.
     """
     m, N = V.shape
     K = K_next.shape[0] // max(N, 1)
     B = noise * np.eye(m) + V @ V.T  # [m, m]
     factor = scipy.linalg.cho_factor(B, lower=True, check_finite=False)
+    # Pre-applied solves: weights = R^{-1} B^{-1} V z, so a sweep is two mat-vecs.
+    M = scipy.linalg.solve_triangular(
+        R, scipy.linalg.cho_solve(factor, V, check_finite=False), check_finite=False
+    )  # [m, N]
+    n_active = min(max(int(n_active), 1), K)
+    K_all = K_next.reshape(N, K, m)
+    rows = np.arange(N)[:, None]
     y = np.array(targets0, dtype=np.float64)
     change = np.inf
-    sweeps = 0
-    while sweeps < max_sweeps and change > tol:
-        mu = scipy.linalg.cho_solve(factor, V @ ((y - y_mean) / y_scale), check_finite=False)
-        weights = scipy.linalg.solve_triangular(R, mu, check_finite=False)  # [m], K_BV^{-1} f_BV
-        q_next = y_mean + y_scale * (K_next @ weights).reshape(N, K).max(axis=1)  # [N]
-        y_new = np.clip(rewards + gamma * continues * q_next, *bounds)
+    sweeps = since_full = 0
+    K_active: FloatArray | None = None
+    full = True
+    while sweeps < max_sweeps:
+        weights = M @ ((y - y_mean) / y_scale)  # [m], K_BV^{-1} f_BV
+        if full or K_active is None:
+            q_all = (K_next @ weights).reshape(N, K)
+            top = np.argpartition(q_all, K - n_active, axis=1)[:, K - n_active :]
+            K_active = K_all[rows, top]  # [N, n_active, m]: the best candidates now
+            q_next = q_all.max(axis=1)
+            since_full = 0
+        else:
+            q_next = (K_active @ weights).max(axis=1)
+            since_full += 1
+        y_new = np.clip(rewards + gamma * continues * (y_mean + y_scale * q_next), *bounds)
         change = float(np.max(np.abs(y_new - y))) if N else 0.0
         y = y_new
         sweeps += 1
+        if change <= tol and full:
+            break  # converged under the max over *every* candidate
+        full = change <= tol or since_full + 1 >= refresh_every
     return FittedQResult(targets=y, sweeps=sweeps, max_change=change)

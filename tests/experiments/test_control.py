@@ -100,8 +100,10 @@ def test_untrained_agent_fails_the_evaluation() -> None:
 
 
 def test_benchmark_is_resumable_and_reports(tmp_path: Path) -> None:
-    kw = dict(env_id=ENV, kernels=["euclidean"], seeds=2, timesteps=120, eval_every=60,
-              eval_episodes=2, configs=[{"max_bv": 20, "train_every": 60}], progress=False)  # fmt: skip
+    kw = dict(
+        env_id=ENV, kernels=["euclidean"], seeds=2, timesteps=120, eval_every=60,
+        eval_episodes=2, configs=[{"max_bv": 20, "train_every": 60}], progress=False,
+    )  # fmt: skip
     rows = run_control_benchmark(tmp_path, **kw)  # type: ignore[arg-type]
     assert [r["checkpoints"] for r in rows] == [[60, 120], [60, 120]]
     for name in ("control.csv", "learning_curves.png", "CONTROL.md", "cells"):

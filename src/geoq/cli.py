@@ -388,6 +388,17 @@ def bench_control(
             help="Exploration mode(s) to compare: ucb, thompson, gaussian (repeat the option).",
         ),
     ] = None,
+    baselines: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--baseline",
+            help=(
+                "Also run a baseline with its default settings, same seeds, budgets and "
+                "evaluation: sac (Stable-Baselines3; needs pip install 'geoq[baselines]', "
+                "which pulls torch)."
+            ),
+        ),
+    ] = None,
     seeds: Annotated[int, typer.Option("--seeds", min=1, help="Seeds per setting.")] = 10,
     timesteps: Annotated[int, typer.Option("--timesteps", min=1, help="Steps per run.")] = 3_000,
     eval_every: Annotated[
@@ -416,6 +427,13 @@ def bench_control(
             raise typer.BadParameter(
                 f"{mode!r} is not one of {EXPLORATION_MODES}", param_hint="'--exploration'"
             )
+    from geoq.experiments.sac_baseline import BASELINES
+
+    for name in baselines or []:
+        if name not in BASELINES:
+            raise typer.BadParameter(
+                f"{name!r} is not one of {BASELINES}", param_hint="'--baseline'"
+            )
     base = _agent_config(config)
     configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
     try:
@@ -424,7 +442,8 @@ def bench_control(
         run_control_benchmark(
             out, env_id=env, kernels=[k.value for k in (kernels or [KernelChoice.euclidean])],
             seeds=seeds, timesteps=timesteps, eval_every=eval_every,
-            eval_episodes=eval_episodes, configs=configs, jobs=jobs, backend=backend.value,
+            eval_episodes=eval_episodes, configs=configs, baselines=baselines or [],
+            jobs=jobs, backend=backend.value,
             scheduler=scheduler, progress=progress,
         )  # fmt: skip
     except KeyboardInterrupt:

@@ -181,11 +181,18 @@ class ControlCell:
 def control_cell(cell: ControlCell) -> dict[str, Any]:
     """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
 
+    ``cell.kernel`` may also name a baseline (``"sac"``,
+    :mod:`geoq.experiments.sac_baseline`), trained and evaluated the same way.
+
     Returns a row with the checkpoints, the evaluation's mean return and
     success rate at each, the training curve and the wall time of learning.
     """
     import time
 
+    from geoq.experiments.sac_baseline import BASELINES, sac_cell
+
+    if cell.kernel in BASELINES:
+        return sac_cell(cell)
     agent = GPQAgent(cell.env_id, kernel=cell.kernel, seed=cell.seed, **dict(cell.config))  # type: ignore[arg-type]
     checkpoints, eval_returns, eval_success = [], [], []
     learn_seconds = 0.0
@@ -279,13 +286,18 @@ def run_control_benchmark(
     eval_every: int,
     eval_episodes: int = 20,
     configs: Sequence[Mapping[str, Any]] = ({},),
+    baselines: Sequence[str] = (),
     jobs: int = 1,
     backend: str = "loky",
     scheduler: str | None = None,
     progress: bool = True,
 ) -> list[dict[str, Any]]:
     """Every (kernel, config, seed) cell through the resumable sweep runner; writes
-    ``control.csv``, ``learning_curves.png`` and ``CONTROL.md`` into ``out``."""
+    ``control.csv``, ``learning_curves.png`` and ``CONTROL.md`` into ``out``.
+
+    ``baselines`` (e.g. ``["sac"]``) adds cells of those baselines with default
+    settings, same seeds, budgets and evaluation.
+    """
     from geoq.experiments.reproduce import save_figure, write_csv
     from geoq.experiments.sweep import run_sweep
     from geoq.plotting import plot_learning_curve
@@ -294,6 +306,9 @@ def run_control_benchmark(
     cells = [
         ControlCell(env_id, k, s, timesteps, eval_every, eval_episodes, dict(c))
         for k in kernels for c in configs for s in range(seeds)
+    ] + [
+        ControlCell(env_id, b, s, timesteps, eval_every, eval_episodes)
+        for b in baselines for s in range(seeds)
     ]  # fmt: skip
     rows = run_sweep(
         cells, control_cell, out / "cells", jobs=jobs, backend=backend,

@@ -1,0 +1,81 @@
+"""Stable-Baselines3's SAC as a control baseline (benchmark only; optional dependency).
+
+``pip install 'geoq[baselines]'`` installs stable-baselines3, which pulls torch
+(several GB): neither ``make install``, ``make test`` nor ``make demo`` needs it.
+SAC runs with its default settings (learning rate 3e-4 in SB3 >= 2, buffer
+1e6, batch 256, ``learning_starts = 100``, one gradient step per env step) on
+one torch thread, is evaluated exactly as the GP agent is
+(:func:`geoq.experiments.control.evaluate_agent`), at the same checkpoints.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+import gymnasium
+import numpy as np
+
+if TYPE_CHECKING:
+    from geoq.experiments.control import ControlCell
+
+__all__ = ["BASELINES", "sac_cell"]
+
+#: Names of the baselines a benchmark cell can run instead of a GP agent.
+BASELINES: tuple[str, ...] = ("sac",)
+
+
+class _Evaluated:
+    """SB3 model -> the ``predict``/``env_id`` interface of :func:`evaluate_agent`."""
+
+    def __init__(self, model: Any, env_id: str) -> None:
+        self.model, self.env_id = model, env_id
+
+    def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        actions, _ = self.model.predict(obs, deterministic=deterministic)
+        return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1), None
+
+
+def sac_cell(cell: ControlCell) -> dict[str, Any]:
+    """Train SAC for ``cell.timesteps`` steps, evaluating every ``cell.eval_every``."""
+    try:
+        import torch
+        from stable_baselines3 import SAC
+    except ImportError as exc:  # pragma: no cover - depends on the optional extra
+        raise ImportError(
+            "the SAC baseline needs stable-baselines3: pip install 'geoq[baselines]' "
+            "(it pulls torch, several GB)"
+        ) from exc
+    from geoq.experiments.control import evaluate_agent
+
+    torch.set_num_threads(1)
+    env = gymnasium.make(cell.env_id)
+    model = SAC("MlpPolicy", env, seed=cell.seed, verbose=0, device="cpu", **dict(cell.config))
+    checkpoints, eval_returns, eval_success = [], [], []
+    learn_seconds, done = 0.0, 0
+    while done < cell.timesteps:
+        step = min(cell.eval_every, cell.timesteps - done)
+        t0 = time.perf_counter()
+        model.learn(total_timesteps=step, reset_num_timesteps=False)
+        learn_seconds += time.perf_counter() - t0
+        done += step
+        ev = evaluate_agent(
+            _Evaluated(model, cell.env_id),  # type: ignore[arg-type]
+            cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed,
+        )  # fmt: skip
+        checkpoints.append(done)
+        eval_returns.append(float(np.mean(ev.returns)))
+        eval_success.append(ev.success_rate)
+    return {
+        "label": cell.label,
+        "kernel": cell.kernel,
+        "seed": cell.seed,
+        "checkpoints": checkpoints,
+        "eval_return": eval_returns,
+        "eval_success": eval_success,
+        "train_timesteps": [],
+        "train_return": [],
+        "learn_seconds": learn_seconds,
+        "ms_per_step": 1e3 * learn_seconds / max(done, 1),
+        "n_bv": 0,
+    }

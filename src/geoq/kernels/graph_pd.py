@@ -72,6 +72,7 @@ import scipy.linalg
 import scipy.sparse
 from scipy.sparse.csgraph import connected_components
 
+from geoq._threads import one_blas_thread, single_blas_thread
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import check_positive
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
@@ -227,7 +228,8 @@ class ResistanceDistance(BasisGraphDistance):
         """[n, n] effective resistances of the current graph (the internal array: do not edit)."""
         g = self.graph
         if self._version != g.version:
-            self._R = effective_resistance(g._W[: g.n_nodes, : g.n_nodes])
+            with one_blas_thread():
+                self._R = effective_resistance(g._W[: g.n_nodes, : g.n_nodes])
             self._version = g.version
             self.n_full_recomputes += 1
         return self._R
@@ -290,6 +292,7 @@ class ResistanceDistance(BasisGraphDistance):
         R[np.ix_(Z, X)] = block.T
 
     # -- basis hooks ------------------------------------------------------------------------
+    @single_blas_thread  # products of [s, k] matrices: one BLAS thread
     def basis_added(self, x: FloatArray) -> None:
         self._current()
         self._version = -1  # stale until the update below has finished
@@ -319,6 +322,7 @@ class ResistanceDistance(BasisGraphDistance):
                     self._recompute(self._component(v))
         self._version = g.version
 
+    @single_blas_thread  # products of [s, k] matrices: one BLAS thread
     def basis_removed(self, index: int) -> None:
         self._current()
         g = self.graph

@@ -65,6 +65,7 @@ def test_resistance_hooks_run_on_one_thread(two_threads, monkeypatch):
         return add_edges(*args)
 
     monkeypatch.setattr(graph_pd, "add_edges", spy)
+    assert rk.distance.resistance.shape == (0, 0)  # type: ignore[attr-defined]  # now current
     for x in ([0.0, 0.0], [0.3, 0.0], [0.3, 0.3], [0.0, 0.3]):
         rk.basis_added(np.asarray(x))
     assert seen and all(s == [1] * len(s) for s in seen)

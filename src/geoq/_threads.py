@@ -27,8 +27,8 @@ has no per-thread setting): while any Python thread is inside, BLAS calls of
 other threads also run on one thread; the caller's counts are restored when the
 last one leaves (threadpoolctl lets only one Python thread set OpenBLAS's count:
 from another thread the limit is a no-op, never an error). A BLAS library loaded
-after the first use is not limited (numpy's and scipy's are loaded by then:
-importing geoq imports both).
+after the first use is not limited (numpy's and scipy's are: the first use
+imports ``scipy.linalg`` before looking).
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ def blas_controllers() -> list[Any]:
     """threadpoolctl's controllers of the loaded BLAS libraries (found once, then cached)."""
     global _controllers
     if _controllers is None:
+        import scipy.linalg  # noqa: F401 - scipy's own BLAS must be loaded to be found
         from threadpoolctl import ThreadpoolController
 
         found = ThreadpoolController().lib_controllers

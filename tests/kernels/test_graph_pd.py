@@ -176,6 +176,22 @@ def test_incremental_resistance_equals_scratch_after_random_changes(
         assert d.n_full_recomputes == 1
 
 
+@pytest.mark.parametrize("temporal", [False, True])
+def test_removing_the_node_added_last_restores_r(temporal):
+    d = square()
+    d.graph.temporal_edges = temporal
+    before = d.resistance
+    d.basis_added(np.array([0.5, 0.4]))
+    d.basis_removed(4)
+    assert d.n_undone == 1
+    np.testing.assert_array_equal(d.resistance, before)
+    assert_matches_scratch(d)
+    d.basis_added(np.array([0.5, 0.4]))
+    d.basis_removed(0)  # another node: a real update
+    assert d.n_undone == 1
+    assert_matches_scratch(d)
+
+
 def test_a_change_behind_the_kernels_back_is_caught_by_the_graph_version():
     d = square()
     d.graph.add_node(np.array([0.5, 0.5]))  # not through the basis hooks
@@ -244,5 +260,6 @@ def test_gp_fit_keeps_the_resistances_current(always_update):
     assert gp.diagnostics.n_deleted > 20
     assert rk.graph.degrees().mean() > 5
     assert_matches_scratch(d)
+    assert d.n_undone > 0  # the GP often deletes the point it has just added
     if always_update:  # fit clears the graph, then every change is an update
         assert d.n_full_recomputes == 0

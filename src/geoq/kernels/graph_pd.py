@@ -35,35 +35,20 @@ the distance marks ``R`` stale and recomputes it once at its next use, which
 also absorbs every further change before that use (the GP adds and deletes a
 node per point, then reads ``K_BV`` once).
 
-* **add** node ``v`` with edge resistances ``w_e`` to nodes ``q_e``: ``v`` is hung
-  as a leaf on its strongest neighbour ``a`` (``R[v, j] = w_a + R[a, j]``); an
-  edge into another component merges it (``R[x, y] = R[x, v] + w_b + R[b, y]``);
-  the ``k'`` remaining edges close cycles and enter at once by Woodbury on the
-  Laplacian's pseudo-inverse, written in ``R`` alone (:func:`add_edges`)::
-
-      Y[i, e] = (R[i, q_e] - R[i, v]) / 2               # [s, k'] potentials
-      S = diag(w) + B^T L^+ B,  (B^T L^+ B)_ef = (R[v, q_e] + R[v, q_f] - R[q_e, q_f]) / 2
-      R'_ij = R_ij - (Y_i - Y_j)^T S^{-1} (Y_i - Y_j)
-
-  (for one edge: ``R' = R - (Y_i - Y_j)^2 / (w + R[v, q])``; ``w = 0``, a short
-  circuit, is its limit and needs no special case).
-* **remove** node ``v`` (:func:`remove_node_resistances`): ``v`` is first shorted
-  to its strongest neighbour ``a`` (one rank-one term, ``R^H``), then its other
-  edges, now edges from ``a``, are taken out by Woodbury with the capacitance
-  ``K = diag(w) - H_NN``, ``H_nm = (R^H[n, a] + R^H[m, a] - R^H[n, m]) / 2``:
-  ``R'_ij = R^H_ij + (Y_i - Y_j)^T K^{-1} (Y_i - Y_j)``. A leaf goes without any
-  update. Where ``K`` is singular the update does not apply, and the component
-  is **recomputed from scratch** (O(s^3)): when the removal splits the component
-  (``v`` was a cut vertex; read off the graph's exact shortest paths), when ``v``
-  has a zero-length edge, or when ``K`` fails its Cholesky factorisation.
-* removing the node added last, before any other change (the GP's usual
-  "add, then delete the least useful BV", which is often the new one: 370 of
-  550 deletions in ``benchmarks/bench_resistance.py``) restores ``R`` from before
-  the addition, at no cost;
-* an edge the graph adds or shortens while removing a node (the temporal bridge
-  between ``v``'s roll-out neighbours) is a parallel resistor, added *before*
-  ``v`` leaves (its ends are both neighbours of ``v``, so connectivity is read
-  on the final graph).
+The algebra (:mod:`geoq.kernels._resistance`): an added node is hung as a leaf
+on its strongest neighbour, an edge into another component merges it (series
+rule), the remaining edges close cycles and enter at once by Woodbury on
+``L^+`` written in ``R`` alone; a removed node is shorted to its strongest
+neighbour, then its other edges are taken out by Woodbury. The component is
+recomputed from scratch (O(s^3)) where that does not apply: the removal splits
+it (a cut vertex, read off the graph's exact shortest paths), the node has a
+zero-length edge, or a capacitance matrix fails its Cholesky factorisation.
+Removing the node added last, before any other change (the GP's "add, then
+delete the least useful BV", often the new one: 370 of 550 deletions in
+``benchmarks/bench_resistance.py``), restores ``R`` from before the addition.
+An edge the graph adds or shortens while removing a node (the temporal bridge
+between the node's roll-out neighbours) is a parallel resistor, added before
+the node leaves.
 
 The updates agree with :func:`effective_resistance` to rounding: the oracle test
 (``tests/kernels/test_graph_pd.py``, random add/remove sequences with short
@@ -78,14 +63,18 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse
-from scipy.sparse.csgraph import connected_components
 
 from geoq._threads import one_blas_thread, single_blas_thread
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import check_positive
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels._resistance import (
+    add_edges,
+    components_of,
+    effective_resistance,
+    parallel_part,
+    remove_node_resistances,
+)
 from geoq.kernels.geodesic import BasisGraphDistance, GraphKernel, pendant_distances
 
 __all__ = [
@@ -96,169 +85,6 @@ __all__ = [
     "effective_resistance",
     "remove_node_resistances",
 ]
-
-
-def effective_resistance(W: FloatArray, components: IntArray | None = None) -> FloatArray:
-    """Effective resistances [n, n] of a graph with edge resistances ``W`` [n, n].
-
-    ``W`` is symmetric, ``inf`` where there is no edge; zero entries are short
-    circuits. ``R = inf`` between different connected components.
-    ``components`` [n] optionally gives the connected-component label of each
-    node (0, 1, ...), e.g. from :func:`components_of`, sparing the search.
-    """
-    n = W.shape[0]
-    if n == 0:
-        return np.zeros((0, 0))
-    edge = np.isfinite(W)
-    np.fill_diagonal(edge, False)
-    short = edge & (W == 0.0)
-    if short.any():  # merge the ends of short circuits; conductances of parallel edges add
-        n_super, label = connected_components(scipy.sparse.csr_array(short), directed=False)
-        rows, cols = np.nonzero(edge & ~short)
-        C = np.zeros((n_super, n_super))
-        np.add.at(C, (label[rows], label[cols]), 1.0 / W[rows, cols])
-        np.fill_diagonal(C, 0.0)
-        components = None  # labels of the merged nodes: searched below
-    else:
-        n_super, label = n, None
-        C = np.divide(1.0, W, out=np.zeros_like(W), where=edge)  # [n, n] conductances
-    if components is None:
-        n_comp, comp = connected_components(scipy.sparse.csr_array(C > 0), directed=False)
-    else:
-        n_comp, comp = int(components.max()) + 1, components
-    Rq = np.full((n_super, n_super), np.inf)
-    for c in range(n_comp):
-        idx = np.flatnonzero(comp == c) if n_comp > 1 else np.arange(n_super)
-        Rc = _component_resistance(C if n_comp == 1 else C[np.ix_(idx, idx)])
-        if n_comp == 1:
-            Rq = Rc
-        else:
-            Rq[np.ix_(idx, idx)] = Rc
-    return Rq if label is None else Rq[np.ix_(label, label)]
-
-
-def components_of(P: FloatArray) -> IntArray:
-    """Connected-component labels [n] (0, 1, ... in order of first node) from a matrix
-    [n, n] that is finite exactly between connected nodes (shortest paths, ``R``)."""
-    n = P.shape[0]
-    label = np.full(n, -1, dtype=np.int64)
-    c = 0
-    for i in range(n):
-        if label[i] < 0:
-            label[np.isfinite(P[i])] = c
-            c += 1
-    return label
-
-
-def _component_resistance(C: FloatArray) -> FloatArray:
-    """Effective resistances [s, s] of a connected graph of conductances ``C`` [s, s].
-
-    ``G`` = inverse of the Laplacian grounded at node 0 (PD: connected), by its
-    Cholesky factor (``potrf``, ``potri``); ``R_ij = G_ii + G_jj - 2 G_ij``.
-    """
-    s = C.shape[0]
-    if s == 1:
-        return np.zeros((1, 1))
-    L = -C  # [s, s] Laplacian
-    L[np.diag_indices(s)] = C.sum(axis=1)
-    G = np.zeros((s, s))
-    Lf, info = scipy.linalg.lapack.dpotrf(L[1:, 1:], lower=0)
-    if info == 0:
-        Gi, info = scipy.linalg.lapack.dpotri(Lf, lower=0)  # upper triangle of the inverse
-    if info == 0:
-        Gu = np.triu(Gi)
-        G[1:, 1:] = Gu + np.triu(Gu, 1).T
-    else:  # conductances spanning ~1e16: fall back to L^+ (itself inaccurate there)
-        G = scipy.linalg.pinvh(L)
-    g = np.diag(G).copy()
-    Rc = np.add.outer(g, g)
-    Rc -= 2.0 * G
-    np.maximum(Rc, 0.0, out=Rc)
-    np.fill_diagonal(Rc, 0.0)
-    Rc += Rc.T  # exactly symmetric
-    Rc *= 0.5
-    return Rc
-
-
-def _low_rank_update(R: FloatArray, Y: FloatArray, S: FloatArray, sign: float) -> FloatArray | None:
-    """``R + sign * D(Y S^{-1} Y^T)`` [s, s] with ``D(G)_ij = G_ii + G_jj - 2 G_ij``, clipped at 0.
-
-    ``Y`` [s, k], ``S`` [k, k] symmetric positive definite; None if its Cholesky
-    factorisation fails (the update does not apply). ``S^{-1} = L^{-T} L^{-1}``, so
-    ``Y S^{-1} Y^T = T T^T`` with ``T = Y L^{-T}``: two matrix products; the second
-    is symmetrised, so the result is exactly symmetric.
-    """
-    try:
-        L = scipy.linalg.cholesky(S, lower=True, check_finite=False)  # [k, k]
-    except np.linalg.LinAlgError:
-        return None
-    Linv, info = scipy.linalg.lapack.dtrtri(L, lower=1)
-    if info != 0:
-        return None
-    T = Y @ Linv.T  # [s, k]
-    G = T @ T.T  # [s, s]; symmetric only to rounding, so:
-    G += G.T  # 2 x the symmetric part, exactly symmetric
-    G *= 0.5
-    g = np.diag(G).copy()
-    D = np.add.outer(g, g)
-    D -= 2.0 * G
-    out = R + D if sign > 0 else R - D
-    np.maximum(out, 0.0, out=out)
-    return out
-
-
-def add_edges(R: FloatArray, p: int, q: IntArray, w: FloatArray) -> FloatArray | None:
-    """Effective resistances [s, s] after adding resistors ``w`` [k] from node ``p`` to ``q`` [k].
-
-    ``R`` [s, s] is one connected component (finite). Woodbury on ``L^+`` written
-    in ``R`` (module docstring): ``R' = R - D(Y S^{-1} Y^T)``,
-    ``Y[:, e] = (R[:, q_e] - R[:, p]) / 2``, ``S = diag(w) + B^T L^+ B``. A zero
-    ``w`` (short circuit) is allowed; one between ends already at ``R = 0``
-    changes nothing and is skipped. None if ``S`` is singular (several short
-    circuits that coincide): recompute instead.
-    """
-    keep = (w > 0.0) | (R[p, q] > 0.0)
-    q, w = q[keep], w[keep]
-    if q.size == 0:
-        return R
-    Y = 0.5 * (R[:, q] - R[:, p : p + 1])  # [s, k]
-    rp = R[p, q]  # [k]
-    S = 0.5 * (np.add.outer(rp, rp) - R[np.ix_(q, q)])  # [k, k] = B^T L^+ B
-    S[np.diag_indices_from(S)] += w
-    return _low_rank_update(R, Y, S, -1.0)
-
-
-def remove_node_resistances(
-    R: FloatArray, v: int, nbr: IntArray, w: FloatArray
-) -> FloatArray | None:
-    """Effective resistances [s, s] of one component after node ``v`` loses its edges.
-
-    ``R`` [s, s] is the component with ``v`` (finite); ``nbr`` [k >= 2] the
-    neighbours of ``v``, ``w`` [k] > 0 their resistances. Row and column ``v`` of
-    the result are meaningless (the caller drops them). ``v`` is shorted to its
-    strongest neighbour ``a`` (``R^H``, a rank-one term), then the other edges,
-    now resistors from the grounded ``a``, are removed by Woodbury with the
-    capacitance ``K = diag(w) - H_NN`` (module docstring). None if ``K`` is not
-    positive definite: the remaining graph is disconnected (or nearly so);
-    recompute instead.
-    """
-    order = np.argsort(w, kind="stable")
-    a, rest, wr = int(nbr[order[0]]), nbr[order[1:]], w[order[1:]]
-    u = 0.5 * (R[:, a] - R[:, v])  # [s]
-    du = np.subtract.outer(u, u)
-    RH = R - du * du / R[a, v]  # v shorted to a
-    Y = 0.5 * (RH[:, a : a + 1] - RH[:, rest])  # [s, k - 1]
-    h = RH[rest, a]
-    K = -0.5 * (np.add.outer(h, h) - RH[np.ix_(rest, rest)])  # -H_NN
-    K[np.diag_indices_from(K)] += wr
-    return _low_rank_update(RH, Y, K, 1.0)
-
-
-def _parallel_part(w_old: float, w_new: float) -> float:
-    """Resistance of the resistor that, in parallel with ``w_old``, gives ``w_new <= w_old``."""
-    if np.isinf(w_old) or w_new == 0.0:
-        return w_new
-    return w_old * w_new / (w_old - w_new)
 
 
 class ResistanceDistance(BasisGraphDistance):
@@ -457,7 +283,7 @@ class ResistanceDistance(BasisGraphDistance):
             w_old, w_new = float(W_old[i, j]), float(W_new[i, j])
             if not w_new < w_old:
                 return False
-            r = _parallel_part(w_old, w_new)
+            r = parallel_part(w_old, w_new)
             if not self._add_edges(int(nbr[i]), nbr[j : j + 1], np.array([r])):
                 return False
         return True

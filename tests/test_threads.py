@@ -82,3 +82,25 @@ def test_nested_and_failing_blocks_restore_only_at_the_outermost_exit(two_thread
     with pytest.raises(RuntimeError), one_blas_thread():
         raise RuntimeError("boom")
     assert counts() == [2] * n
+
+
+def test_predict_uses_one_thread_for_small_batches_only(two_threads, monkeypatch):
+    import geoq._threads as threads
+
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1, 1, (30, 2))
+    gp = SparseOnlineGP(SquaredExponential(0.5), noise=0.01, max_bv=10).fit(X, np.sin(X[:, 0]))
+    seen: list[list[int]] = []
+    predict_factored = SparseOnlineGP._predict_factored
+
+    def spy(self, *args):  # type: ignore[no-untyped-def]
+        seen.append(counts())
+        return predict_factored(self, *args)
+
+    monkeypatch.setattr(SparseOnlineGP, "_predict_factored", spy)
+    monkeypatch.setattr(threads, "SMALL_BATCH", 100)
+    gp.predict(rng.uniform(-1, 1, (100, 2)), return_std=True)  # small: one thread
+    gp.predict(X=rng.uniform(-1, 1, (101, 2)))  # large: the caller's setting
+    n = len(counts())
+    assert seen == [[1] * n, [2] * n]
+    assert counts() == [2] * n

@@ -65,7 +65,7 @@ import numpy as np
 import scipy.linalg
 
 from geoq._io import ArchiveError, load_archive, save_archive
-from geoq._threads import single_blas_thread
+from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
 from geoq.gp._step import (
@@ -618,6 +618,7 @@ class SparseOnlineGP:
     def predict(self, X: ArrayLike, return_std: Literal[False] = ...) -> FloatArray: ...
     @overload
     def predict(self, X: ArrayLike, return_std: Literal[True]) -> tuple[FloatArray, FloatArray]: ...
+    @single_blas_thread_for_small_batches  # geoq._threads
     def predict(
         self, X: ArrayLike, return_std: bool = False
     ) -> FloatArray | tuple[FloatArray, FloatArray]:

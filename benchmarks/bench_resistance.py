@@ -124,7 +124,7 @@ def main(scratch: bool = True) -> None:
             d = gp.diagnostics
             extra = f"  graph + R {hooks:5.2f} s" if hooks else ""
             print(
-                f"  {name:28s} {t:8.3f} s  {t / t_se:6.1f}x SE  n_bv {gp.n_bv}, added "
+                f"  {name:33s} {t:8.3f} s  {t / t_se:6.1f}x SE  n_bv {gp.n_bv}, added "
                 f"{d.n_added}, deleted {d.n_deleted}, resyncs {d.q_resyncs}{extra}"
             )
     print(f"  goal: resistance (as shipped) <= {GOAL_RATIO:.0f}x SE")

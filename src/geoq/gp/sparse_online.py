@@ -65,6 +65,7 @@ import numpy as np
 import scipy.linalg
 
 from geoq._io import ArchiveError, load_archive, save_archive
+from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
 from geoq.gp._step import (
@@ -390,6 +391,7 @@ class SparseOnlineGP:
             raise ValueError(f"y must be one finite number, got {y!r}")
         return self._stream(xa[None, :], ya.reshape(1))
 
+    @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
         """Reset to the prior (empty BV set), then stream the rows of ``X`` [N, d], ``y`` [N]."""
         if self.kernel.input_dim is None:
@@ -402,6 +404,7 @@ class SparseOnlineGP:
         self.kernel.basis_cleared()
         return self._stream(Xa, ya)
 
+    @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def partial_fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
         """Stream the rows of ``X`` [N, d], ``y`` [N] in order, without resetting."""
         Xa, ya = self._check_Xy(X, y)
@@ -521,6 +524,7 @@ class SparseOnlineGP:
         if record_drift:
             self._max_q_drift = max(self._max_q_drift, drift)
 
+    @single_blas_thread  # per change with a resistance kernel: limit here, not per update
     def _resync_q(self) -> None:
         """Refresh the deletion scores exactly; re-anchor ``R`` for basis-tracking kernels.
 
@@ -571,6 +575,7 @@ class SparseOnlineGP:
         S = (U * np.clip(w, 0.0, 1.0)) @ U.T
         return 0.5 * (S + S.T)
 
+    @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def refit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
         """Projected-process (DTC) posterior on the current BV set with the current kernel.
 
@@ -613,6 +618,7 @@ class SparseOnlineGP:
     def predict(self, X: ArrayLike, return_std: Literal[False] = ...) -> FloatArray: ...
     @overload
     def predict(self, X: ArrayLike, return_std: Literal[True]) -> tuple[FloatArray, FloatArray]: ...
+    @single_blas_thread_for_small_batches  # geoq._threads
     def predict(
         self, X: ArrayLike, return_std: bool = False
     ) -> FloatArray | tuple[FloatArray, FloatArray]:

@@ -14,12 +14,15 @@ box :data:`LOG_BOUNDS`.
 
 How the fit avoids stalling (issue 14)
 --------------------------------------
-* The objective is finite everywhere in the box: where ``K_y`` is numerically
-  not positive definite (long length-scales with a tiny noise), it is factorised
-  with the jitter policy of :func:`geoq.gp.numerics.safe_cholesky`, and the
-  evidence and gradient are those of the jittered matrix. It used to return
-  ``(inf, 0)`` there, which made L-BFGS-B's line search fall back to the start and
-  report convergence.
+* The objective is finite everywhere in the box. It used to return ``(inf, 0)``
+  where ``K_y`` failed a Cholesky (at 7 of the 64 corners of the box on the data
+  of issue 14), which made L-BFGS-B's line search fall back to the start and
+  report convergence. The squared distances are now summed from exact
+  per-dimension differences (``|a|^2 + |b|^2 - 2 a.b`` cancelled badly when short
+  length-scales blew the inputs up, and made ``K_l`` indefinite), and a ``K_y``
+  that is still numerically indefinite is factorised with the jitter policy of
+  :func:`geoq.gp.numerics.safe_cholesky`: the evidence and gradient are then those
+  of the jittered matrix.
 * The default start is data-driven: per input dimension, the median of the
   pairwise distances between the points (the "median heuristic"); the prior
   variance ``var(y)``; the noise ``var(y) / 10``.
@@ -85,6 +88,7 @@ class EvidenceFit:
     n_used : number of points the evidence was computed on.
     converged : the winning run's optimiser reported success, the evidence rose
         above that run's start, and the projected gradient is small (a local optimum).
+        A fit started exactly at an optimum has made no progress and reports False.
     message : the winning run's optimiser message.
     log_evidence_start : ``log p(y | X)`` at the first start (data-driven, or the caller's).
     n_restarts : number of starts beyond the first.
@@ -154,9 +158,9 @@ class _Objective:
     differences of ``X`` computed once.
 
     ``theta = log(lengthscale_1..n_ls, variance, noise)`` with ``n_ls = d`` (ARD)
-    or 1. Never returns ``inf``: a ``K_y`` that is numerically indefinite is
-    factorised with the jitter policy, and the value and gradient are those of
-    the jittered matrix.
+    or 1; the cache holds ``n_ls N^2`` floats. Never returns ``inf``: a ``K_y``
+    that is numerically indefinite is factorised with the jitter policy, and the
+    value and gradient are those of the jittered matrix.
     """
 
     def __init__(
@@ -164,7 +168,6 @@ class _Objective:
     ) -> None:
         self.X = X  # [N, d]
         self.y = y  # [N]
-        self.ard = ard
         self.config = config
         diff2 = (X[:, None, :] - X[None, :, :]) ** 2  # [N, N, d]
         if ard:
@@ -208,8 +211,9 @@ def _negative_evidence_and_gradient(
 
 
 def _projected_gradient(theta: FloatArray, grad: FloatArray, bounds: FloatArray) -> float:
-    """Largest violation of the first-order optimality conditions of ``min f`` in the
-    box ``bounds`` ([p, 2]): ``|grad|`` inside, only descent out of the box at a bound."""
+    """Largest violation of the first-order (KKT) conditions of ``min f`` in the box
+    ``bounds`` ([p, 2]): ``|grad|`` inside; at a bound, only a descent direction
+    that points into the box counts."""
     at_lo = theta <= bounds[:, 0] + _AT_TOL
     at_hi = theta >= bounds[:, 1] - _AT_TOL
     g = np.where(at_lo, np.minimum(grad, 0.0), grad)

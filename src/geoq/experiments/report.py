@@ -163,6 +163,8 @@ def _evidence_fit_line(ev: Mapping[str, Any]) -> str:
     )
     if ev["at_bound"]:
         line += f"; at a bound: {', '.join(ev['at_bound'])}"
+        if any(b.startswith("lengthscale") and b.endswith("upper") for b in ev["at_bound"]):
+            line += " (the SE kernel all but ignores an input whose length-scale is that long)"
     return line + "."
 
 

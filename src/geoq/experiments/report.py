@@ -152,6 +152,22 @@ def _table(rows: Sequence[Mapping[str, Any]], column: str) -> list[str]:
     return lines
 
 
+def _evidence_fit_line(ev: Mapping[str, Any]) -> str:
+    """How the evidence fit went: start and end, restarts, convergence, bounds (issue 14)."""
+    runs = ", ".join(f"{v:.1f}" for v in ev["log_evidence_runs"])
+    status = "converged to a local optimum" if ev["converged"] else "**did not converge**"
+    line = (
+        f"  - evidence fit: log evidence {ev['log_evidence_start']:.1f} at the data-driven "
+        f"start, {ev['log_evidence']:.1f} at the end; best of 1 + {ev['n_restarts']} seeded "
+        f"restarts (runs ended at {runs}); {status}"
+    )
+    if ev["at_bound"]:
+        line += f"; at a bound: {', '.join(ev['at_bound'])}"
+        if any(b.startswith("lengthscale") and b.endswith("upper") for b in ev["at_bound"]):
+            line += " (the SE kernel all but ignores an input whose length-scale is that long)"
+    return line + "."
+
+
 def render_report(
     *,
     config: Mapping[str, Any],
@@ -184,6 +200,7 @@ def render_report(
         f"(standardised targets; log evidence {tuning['evidence']['log_evidence']:.1f} on "
         f"{tuning['evidence']['n_points']} points); the prior variance and noise are shared by "
         "all three kernels.",
+        _evidence_fit_line(tuning["evidence"]),
     ]
     for g in GRAPH_KERNELS:
         if g not in tuning["configs"]:

@@ -2,7 +2,11 @@
 
 * Squared-exponential length-scales (one per input dimension), prior variance
   and noise variance: maximum exact-GP evidence on the tuning roll-outs
-  (:func:`geoq.gp.evidence.fit_squared_exponential`), paper §3's advice.
+  (:func:`geoq.gp.evidence.fit_squared_exponential`), paper §3's advice, from its
+  data-driven start plus :data:`EVIDENCE_RESTARTS` seeded restarts. The evidence
+  at the start and at the end, every restart's end, whether the fit converged,
+  the parameters left at a bound and the fit's warnings go into ``tuning.json``
+  and REPORT.md, so a reader can see the fit worked (issue 14).
 * The evidence's prior variance and noise are then used by *every* kernel, so
   the three learners differ only in their distance.
 * Geodesic kernels: the graph threshold ``eps``, the width ``sigma_sp`` and, for
@@ -37,6 +41,8 @@ from geoq.rollouts import collect_rollouts
 
 __all__ = [
     "EQ5_VARIANTS",
+    "EVIDENCE_KEYS",
+    "EVIDENCE_RESTARTS",
     "GRAPH_KERNELS",
     "RESISTANCE_LENGTHSCALE_GRID",
     "SIGMA_SE_GRID",
@@ -70,6 +76,23 @@ TUNING_COLUMNS: tuple[str, ...] = (
 RESISTANCE_LENGTHSCALE_GRID: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 #: The kernels on the MDP graph, whose hyper-parameters are chosen by validation.
 GRAPH_KERNELS: tuple[str, ...] = ("nearest", "interpolated", "resistance")
+#: Restarts of the evidence maximisation beyond its data-driven start.
+EVIDENCE_RESTARTS = 3
+#: Keys of ``TuningResult.evidence``; a stored ``tuning.json`` without them predates
+#: the restarted evidence fit (issue 14) and is tuned again.
+EVIDENCE_KEYS: tuple[str, ...] = (
+    "lengthscale",
+    "amplitude",
+    "noise",
+    "log_evidence",
+    "n_points",
+    "log_evidence_start",
+    "n_restarts",
+    "log_evidence_runs",
+    "converged",
+    "at_bound",
+    "warnings",
+)
 
 
 @dataclass(frozen=True)
@@ -89,6 +112,11 @@ class TuningResult:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TuningResult:
+        """Inverse of :meth:`as_dict`; ``KeyError`` for a result without the evidence
+        diagnostics (made before issue 14: its fit may have stalled)."""
+        missing = [k for k in EVIDENCE_KEYS if k not in data["evidence"]]
+        if missing:
+            raise KeyError(f"tuning result predates the evidence diagnostics: no {missing}")
         return cls(
             {k: QGPConfig.from_dict(v) for k, v in data["configs"].items()},
             dict(data["evidence"]),
@@ -121,15 +149,17 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
     X = np.vstack([probe.inputs(ro.states, ro.actions) for ro in rollouts])
     y = np.concatenate([ro.returns for ro in rollouts])
     z = (y - y.mean()) / (y.std() or 1.0)
-    fit = fit_squared_exponential(
-        X,
-        z,
-        lengthscale0=1.0,
-        noise0=0.05,
-        ard=True,
-        max_points=500,
-        rng=rng_for(cfg.root_seed, STREAM["tuning"], 1),
-    )
+    # tune() hides NumericalWarning; the fit's own warnings are recorded instead.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NumericalWarning)
+        fit = fit_squared_exponential(
+            X,
+            z,
+            ard=True,
+            max_points=500,
+            n_restarts=EVIDENCE_RESTARTS,
+            rng=rng_for(cfg.root_seed, STREAM["tuning"], 1),
+        )
     lengthscale = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (X.shape[1],)))
     shared = base.replace(amplitude=float(fit.kernel.variance), noise=float(fit.noise))
     evidence = {
@@ -138,7 +168,16 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
         "noise": float(fit.noise),
         "log_evidence": float(fit.log_evidence),
         "n_points": int(fit.n_used),
+        "log_evidence_start": float(fit.log_evidence_start),
+        "n_restarts": int(fit.n_restarts),
+        "log_evidence_runs": [float(v) for v in fit.log_evidence_runs],
+        "converged": bool(fit.converged),
+        "at_bound": list(fit.at_bound),
+        "warnings": [str(w.message) for w in caught if issubclass(w.category, NumericalWarning)],
     }
+    for w in caught:  # anything else goes on to the caller
+        if not issubclass(w.category, NumericalWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     configs = {"euclidean": shared.replace(kernel="euclidean", lengthscale=lengthscale)}
 
     # Held-out validation for the geodesic kernels.

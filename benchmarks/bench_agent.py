@@ -1,0 +1,61 @@
+"""GPQAgent speed: one environment step (act + online update), a fitted-Q phase, predict.
+
+Goals (issue 9): one step of ``learn`` (act + update, amortised fitted-Q phases
+included) <= 2 ms at 200 BVs; ``predict`` <= 1 ms; 10,000 steps in under a
+minute. Baselines in the same process: the GP's own ``predict`` on the same
+candidate batch and ``update`` of one point (the floor an agent step cannot go
+below), and the raw swing-up env step.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import gymnasium
+import numpy as np
+
+import geoq  # noqa: F401  (registers the envs)
+from geoq.agents import GPQAgent
+
+ENV = "geoq/PendulumSwingUp-v0"
+
+
+def _per_call(fn, repeat: int) -> float:  # type: ignore[no-untyped-def]
+    fn()
+    start = time.perf_counter()
+    for _ in range(repeat):
+        fn()
+    return (time.perf_counter() - start) / repeat
+
+
+def main() -> None:
+    warnings.simplefilter("ignore")
+    env = gymnasium.make(ENV)
+    env.reset(seed=0)
+    t_env = _per_call(lambda: env.step(np.array([1.0])), 2_000)
+    print(f"raw env step: {1e6 * t_env:.0f} us")
+    print(f"{'max_bv':>6} {'learn ms/step':>14} {'(of which fitted-Q)':>20} {'predict ms':>11} "
+          f"{'GP predict+update ms':>21} {'agent / GP':>10}")  # fmt: skip
+    for max_bv in (200, 400):
+        agent = GPQAgent(ENV, max_bv=max_bv, seed=0)
+        n = 1_500
+        start = time.perf_counter()
+        agent.learn(n)
+        t_learn = (time.perf_counter() - start) / n
+        t_train = _per_call(agent.train, 2)  # one phase on all n transitions
+        obs = np.array([0.3, -1.0])
+        t_predict = _per_call(lambda: agent.predict(obs), 300)  # noqa: B023
+        X = agent._candidate_inputs(obs[None, :])
+        x = agent.inputs(obs[None, :], np.array([[1.0]]))[0]
+        t_gp = _per_call(lambda: agent.gp.predict(X, return_std=True), 300)  # noqa: B023
+        t_gp += _per_call(lambda: agent.gp.update(x, 0.0), 300)  # noqa: B023
+        phases = n / agent.config.train_every
+        print(
+            f"{max_bv:>6} {1e3 * t_learn:>14.2f} {1e3 * t_train * phases / n:>20.2f} "
+            f"{1e3 * t_predict:>11.2f} {1e3 * t_gp:>21.2f} {t_learn / t_gp:>10.1f}x"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,4 +1,4 @@
-"""The agent's memory of transitions ``(s, a, r, s', terminated)``."""
+"""The agent's memory: transitions ``(s, a, r, s', terminated)`` and their current targets."""
 
 from __future__ import annotations
 
@@ -10,7 +10,11 @@ __all__ = ["TransitionBuffer"]
 
 
 class TransitionBuffer:
-    """Every transition seen, in order, in growable float64 arrays.
+    """Every transition seen, in order, in growable float64 arrays, with its latest target.
+
+    The target of a transition is its bootstrapped value estimate
+    ``r + gamma (1 - terminated) max_a' Q(s', a')`` as last computed (online when
+    it was seen, then by every fitted-Q phase); it warm-starts the next phase.
 
     Parameters
     ----------
@@ -26,23 +30,32 @@ class TransitionBuffer:
         self._r = np.empty(cap)
         self._s2 = np.empty((cap, self.obs_dim))
         self._term = np.empty(cap, dtype=bool)
+        self._target = np.empty(cap)
         self._n = 0
 
     def __len__(self) -> int:
         return self._n
 
-    def add(self, s: FloatArray, a: FloatArray, r: float, s2: FloatArray, terminated: bool) -> None:
-        """Append one transition (``s`` [d_s], ``a`` [d_a], ``s2`` [d_s])."""
+    def add(
+        self,
+        s: FloatArray,
+        a: FloatArray,
+        r: float,
+        s2: FloatArray,
+        terminated: bool,
+        target: float = 0.0,
+    ) -> None:
+        """Append one transition (``s`` [d_s], ``a`` [d_a], ``s2`` [d_s]) and its target."""
         if self._n == self._r.shape[0]:
             self._grow()
         i = self._n
         self._s[i], self._a[i], self._r[i] = s, a, r
-        self._s2[i], self._term[i] = s2, terminated
+        self._s2[i], self._term[i], self._target[i] = s2, terminated, target
         self._n += 1
 
     def _grow(self) -> None:
         cap = 2 * self._r.shape[0]
-        for name in ("_s", "_a", "_r", "_s2", "_term"):
+        for name in ("_s", "_a", "_r", "_s2", "_term", "_target"):
             old = getattr(self, name)
             new = np.empty((cap, *old.shape[1:]), dtype=old.dtype)
             new[: self._n] = old[: self._n]
@@ -59,25 +72,39 @@ class TransitionBuffer:
         sl = slice(lo, self._n)
         return self._s[sl], self._a[sl], self._r[sl], self._s2[sl], self._term[sl]
 
+    def targets(self, last: int | None = None) -> FloatArray:
+        """Copy of the current targets ``[N]`` (of the ``last`` most recent transitions)."""
+        lo = 0 if last is None else max(self._n - int(last), 0)
+        return self._target[lo : self._n].copy()
+
+    def set_targets(self, values: FloatArray) -> None:
+        """Overwrite the targets of the ``len(values)`` most recent transitions."""
+        k = len(values)
+        if k > self._n:
+            raise ValueError(f"{k} targets for {self._n} transitions")
+        self._target[self._n - k : self._n] = values
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         s, a, r, s2, term = self.arrays()
-        return {"s": s, "a": a, "r": r, "s2": s2, "terminated": term}
+        return {"s": s, "a": a, "r": r, "s2": s2, "terminated": term, "target": self.targets()}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> TransitionBuffer:
         """Inverse of :meth:`to_arrays`; raises ``ValueError`` on inconsistent arrays."""
         s, a, r = arrays["s"], arrays["a"], arrays["r"]
-        s2, term = arrays["s2"], arrays["terminated"]
+        s2, term, target = arrays["s2"], arrays["terminated"], arrays["target"]
         n = r.shape[0]
         if not (
             s.ndim == 2 and a.ndim == 2 and r.ndim == 1 and s2.shape == s.shape
             and s.shape[0] == n and a.shape[0] == n and term.shape == (n,)
+            and target.shape == (n,)
         ):  # fmt: skip
             raise ValueError("transition arrays have inconsistent shapes")
-        if not all(np.all(np.isfinite(x)) for x in (s, a, r, s2)):
+        if not all(np.all(np.isfinite(x)) for x in (s, a, r, s2, target)):
             raise ValueError("transition arrays hold non-finite values")
         buf = cls(s.shape[1], a.shape[1], capacity=max(n, 1))
         buf._s[:n], buf._a[:n], buf._r[:n], buf._s2[:n] = s, a, r, s2
         buf._term[:n] = term.astype(bool)
+        buf._target[:n] = target
         buf._n = n
         return buf

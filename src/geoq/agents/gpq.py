@@ -435,10 +435,10 @@ class GPQAgent:
                     raise ValueError(f"the env returned a non-finite reward {r!r}")
                 s2, _ = self._check_obs(obs2)
                 self.reward_range = (min(self.reward_range[0], r), max(self.reward_range[1], r))
-                self.buffer.add(s[0], a[0], r, s2[0], bool(terminated))
                 mean, std = self.q_candidates(s2)
                 y = r + (0.0 if terminated else c.gamma * float(np.max(mean)))
                 y = float(np.clip(y, *self.value_bounds()))
+                self.buffer.add(s[0], a[0], r, s2[0], bool(terminated), target=y)
                 self.gp.update(self.inputs(s, a)[0], (y - self.y_mean) / self.y_scale)
                 self.num_timesteps += 1
                 done_steps += 1
@@ -475,11 +475,13 @@ class GPQAgent:
         S, A, R, S2, term = self.buffer.arrays(last=c.window)
         if len(R) == 0:
             return 0
+        N = len(R)
         X = self.inputs(S, A)  # [N, d]
         gp = self.gp
         bounds = self.value_bounds()
-        y0 = np.clip(self.y_mean + self.y_scale * gp.predict(X), *bounds)
-        gp.refit(X, (y0 - self.y_mean) / self.y_scale)  # factor K_BV on the current basis
+        y0 = np.clip(self.buffer.targets(last=N), *bounds)  # warm start: the last targets
+        if gp.kernel.tracks_basis:  # K_BV follows a graph: factor the current one afresh
+            gp.refit(X, (y0 - self.y_mean) / self.y_scale)
         m = gp.n_bv
         if m == 0:
             return 0
@@ -493,6 +495,7 @@ class GPQAgent:
             tol=c.sweep_tol * self.y_scale, bounds=bounds,
         )  # fmt: skip
         y = result.targets
+        self.buffer.set_targets(y)
         self.y_mean, self.y_scale = self._standardisation(y, bounds)
         gp.refit(X, (y - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)

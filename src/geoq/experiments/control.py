@@ -17,18 +17,21 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import gymnasium
 import numpy as np
 
 from geoq._io import atomic_write_json, atomic_write_text
 from geoq.agents import GPQAgent
+from geoq.envs import PENDULUM_SWING_UP_ID
 from geoq.experiments.stats import mean_interval
+from geoq.policies import default_policy
 
 __all__ = [
     "ControlCell",
     "Evaluation",
+    "HandMadeController",
     "control_cell",
     "control_report",
     "evaluate_agent",
@@ -70,8 +73,16 @@ class Evaluation:
         )
 
 
+class Actor(Protocol):
+    """Anything that acts like an agent: :class:`GPQAgent`, a baseline, a fixed controller."""
+
+    env_id: str
+
+    def predict(self, observation: Any, deterministic: bool = True) -> tuple[Any, None]: ...
+
+
 def evaluate_agent(
-    agent: GPQAgent, env_id: str | None = None, n_episodes: int = 20, seed: int = 0
+    agent: Actor, env_id: str | None = None, n_episodes: int = 20, seed: int = 0
 ) -> Evaluation:
     """Run ``n_episodes`` deterministic (greedy) episodes from the env's default reset.
 
@@ -107,6 +118,16 @@ def evaluate_agent(
     for e in envs:
         e.close()
     return Evaluation(returns=returns, successes=successes)
+
+
+class HandMadeController:
+    """The reproduction's swing-up controller (:func:`geoq.policies.default_policy`'s mean
+    action) with the ``predict`` interface of an agent: the reference of control reports."""
+
+    env_id = PENDULUM_SWING_UP_ID
+
+    def predict(self, observation: Any, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        return default_policy().mean_action(observation)[:, None], None
 
 
 def _curve_rows(agent: GPQAgent) -> list[dict[str, Any]]:
@@ -244,17 +265,36 @@ def _median_interval(values: Sequence[float], level: float = 0.95) -> tuple[floa
     return med, lo, hi
 
 
-def control_report(rows: Sequence[Mapping[str, Any]], title: str, threshold: float = 0.9) -> str:
-    """CONTROL.md: steps to success and final evaluation per agent setting, over seeds."""
+def control_report(
+    rows: Sequence[Mapping[str, Any]],
+    title: str,
+    threshold: float = 0.9,
+    reference: Evaluation | None = None,
+) -> str:
+    """CONTROL.md: steps to success and final evaluation per agent setting, over seeds.
+
+    ``reference``: the evaluation of a known controller on the same episodes, quoted.
+    """
     labels = list(dict.fromkeys(r["label"] for r in rows))
+    quoted = (
+        []
+        if reference is None
+        else [
+            "Reference, the hand-made controller of the reproduction on the same episodes: "
+            f"{reference.summary()}.",
+            "",
+        ]
+    )
     lines = [
         f"# {title}",
         "",
         f"Steps to a success rate >= {threshold} (deterministic evaluation episodes from the "
         "default reset, checked at every checkpoint): median over seeds with a distribution-free "
-        "95% interval (order statistics), `inf` = not reached within the budget. Returns: mean "
-        "with a Student-t 95% interval over seeds.",
+        "95% interval (order statistics), `inf` = not reached within the budget. Final success "
+        "rate and return (last checkpoint): mean with a Student-t 95% interval over seeds (the "
+        "success interval clipped to [0, 1]).",
         "",
+        *quoted,
         "| agent | seeds | steps to success (median [95%]) | reached | final success | "
         "final return | ms / step |",
         "|---|---|---|---|---|---|---|",
@@ -269,9 +309,33 @@ def control_report(rows: Sequence[Mapping[str, Any]], title: str, threshold: flo
         reached = sum(math.isfinite(s) for s in steps)
         lines.append(
             f"| {label} | {len(sel)} | {med:g} [{lo:g}, {hi:g}] | {reached}/{len(sel)} | "
-            f"{final_s.mean:.2f} [{final_s.low:.2f}, {final_s.high:.2f}] | "
+            f"{final_s.mean:.2f} [{max(final_s.low, 0.0):.2f}, {min(final_s.high, 1.0):.2f}] | "
             f"{final_r.mean:.1f} [{final_r.low:.1f}, {final_r.high:.1f}] | {ms:.2f} |"
         )
+    lines += [
+        "",
+        "Median evaluation success rate over seeds at each checkpoint (mean return in brackets):",
+        "",
+        "| steps | " + " | ".join(labels) + " |",
+        "|---|" + "---|" * len(labels),
+    ]
+    checkpoints = sorted({t for r in rows for t in r["checkpoints"]})
+    for t in checkpoints:
+        cells = []
+        for label in labels:
+            at = [
+                (s, ret)
+                for r in rows if r["label"] == label
+                for c, s, ret in zip(r["checkpoints"], r["eval_success"], r["eval_return"],
+                                     strict=True)
+                if c == t
+            ]  # fmt: skip
+            if at:
+                med = float(np.median([a[0] for a in at]))
+                cells.append(f"{med:.2f} ({np.mean([a[1] for a in at]):.1f})")
+            else:
+                cells.append("")
+        lines.append(f"| {t} | " + " | ".join(cells) + " |")
     lines.append("")
     return "\n".join(lines)
 
@@ -332,5 +396,11 @@ def run_control_benchmark(
         plot_learning_curve(curves, env_id, ylabel="evaluation success rate"),
         out / "learning_curves.png",
     )
-    atomic_write_text(out / "CONTROL.md", control_report(rows, f"Control benchmark on {env_id}"))
+    reference = None
+    if env_id == PENDULUM_SWING_UP_ID:
+        reference = evaluate_agent(HandMadeController(), env_id, eval_episodes, seed=10_000)
+    atomic_write_text(
+        out / "CONTROL.md",
+        control_report(rows, f"Control benchmark on {env_id}", reference=reference),
+    )
     return rows

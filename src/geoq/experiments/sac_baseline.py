@@ -31,9 +31,9 @@ class _Evaluated:
     def __init__(self, model: Any, env_id: str) -> None:
         self.model, self.env_id = model, env_id
 
-    def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
-        actions, _ = self.model.predict(obs, deterministic=deterministic)
-        return np.asarray(actions, dtype=np.float64).reshape(len(obs), -1), None
+    def predict(self, observation: Any, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        actions, _ = self.model.predict(observation, deterministic=deterministic)
+        return np.asarray(actions, dtype=np.float64).reshape(len(observation), -1), None
 
 
 def sac_cell(cell: ControlCell) -> dict[str, Any]:
@@ -60,9 +60,8 @@ def sac_cell(cell: ControlCell) -> dict[str, Any]:
         learn_seconds += time.perf_counter() - t0
         done += step
         ev = evaluate_agent(
-            _Evaluated(model, cell.env_id),  # type: ignore[arg-type]
-            cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed,
-        )  # fmt: skip
+            _Evaluated(model, cell.env_id), cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed
+        )
         checkpoints.append(done)
         eval_returns.append(float(np.mean(ev.returns)))
         eval_success.append(ev.success_rate)

@@ -126,3 +126,42 @@ def test_rollout_rejects_inconsistent_arrays() -> None:
     z = np.zeros
     with pytest.raises(ValueError, match="disagree"):
         Rollout(z((3, 2)), z(3), z(3), z((2, 2)), z(3), 0.9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"n": 0}, "n must be"),
+        ({"n": 2.5}, "n must be"),
+        ({"n": True}, "n must be"),
+        ({"steps": "3"}, "steps must be"),
+        ({"rng": 0}, "Generator"),
+        ({"rng": np.random.RandomState(0)}, "Generator"),
+        ({"gamma": 1.5}, "gamma"),
+    ],
+)
+def test_bad_arguments_get_clear_errors(kwargs: dict[str, object], match: str) -> None:
+    args: dict[str, object] = {"n": 2, "steps": 3, "policy": default_policy(),
+                               "rng": np.random.default_rng(0)}  # fmt: skip
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        collect_rollouts(**args)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, 1j])
+def test_a_policy_returning_non_finite_or_complex_actions_is_refused(bad: complex) -> None:
+    def policy(states: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        out = np.zeros(len(states), dtype=type(bad))
+        out[-1] = bad
+        return out
+
+    with pytest.raises(ValueError, match=r"non-finite|real numbers"):
+        collect_rollouts(2, 4, policy, np.random.default_rng(0))
+
+
+def test_recorded_torques_are_the_applied_ones() -> None:
+    """The default physics clips at 5 N m: the record holds the clipped torque."""
+    ro = collect_rollouts(1, 5, lambda s, rng: np.full(len(s), 50.0), np.random.default_rng(0))[0]
+    np.testing.assert_array_equal(ro.actions, 5.0)
+    same = collect_rollouts(1, 5, lambda s, rng: np.full(len(s), 5.0), np.random.default_rng(0))[0]
+    np.testing.assert_array_equal(ro.next_states, same.next_states)

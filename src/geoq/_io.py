@@ -11,6 +11,7 @@ import io
 import json
 import os
 import tempfile
+import threading
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -36,12 +37,30 @@ class ArchiveError(ValueError):
     """A saved file is missing, truncated, tampered with or from another version."""
 
 
+_UMASK_LOCK = threading.Lock()
+
+
+def _umask() -> int:
+    """The process umask (read by setting and restoring it; Python has no getter)."""
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temp file + fsync + rename)."""
+    """Write ``data`` to ``path`` atomically (temp file + fsync + rename).
+
+    The file gets the mode a plain ``open(path, "w")`` would give it
+    (``0o666`` minus the umask), not the ``0o600`` of the temporary file.
+    """
     target = Path(path)
+    if target.is_dir():
+        raise IsADirectoryError(f"{target} is a directory; give a file path")
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -96,11 +115,26 @@ def load_archive(
     or written by a newer format version than this geoq understands.
     """
     p = Path(path)
+    if p.is_dir():
+        raise ArchiveError(f"{p} is a directory, not a saved model; give the .npz file inside it")
     if not p.is_file():
         raise ArchiveError(f"{p}: no such file")
     try:
+        with open(p, "rb") as fh:
+            magic = fh.read(6)
+        if magic == b"\x93NUMPY":
+            raise ArchiveError(
+                f"{p}: a .npy array, not a .npz archive; geoq saves models as .npz with save()"
+            )
+        if magic[:2] != b"PK":
+            raise ArchiveError(
+                f"{p}: cannot read it as a .npz archive (it does not start like a zip file); "
+                "the file is truncated or corrupt, or not a saved model"
+            )
         with np.load(p, allow_pickle=False) as npz:
             arrays = {name: npz[name] for name in npz.files}
+    except ArchiveError:
+        raise
     except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError) as exc:
         raise ArchiveError(
             f"{p}: cannot read it as a .npz archive ({exc}); the file is truncated or corrupt, "

@@ -27,11 +27,29 @@ def _check_finite(arr: FloatArray, name: str) -> None:
 
 
 def _to_float(value: ArrayLike, name: str) -> FloatArray:
+    """``value`` as float64; only real numbers (bool, int, float) convert.
+
+    Complex numbers (the imaginary part would be dropped), datetimes and
+    timedeltas (they would become epoch counts), masked arrays (the mask would
+    be lost), strings and objects are refused with a ``ValueError``.
+    """
+    if isinstance(value, np.ma.MaskedArray):
+        raise ValueError(f"{name} is a masked array; fill or drop the masked entries first")
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        raw = np.asarray(value)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
-    return arr
+    if raw.dtype.kind not in "biuf":
+        what = {"c": "complex", "M": "datetime", "m": "timedelta"}.get(raw.dtype.kind)
+        if what is not None:
+            raise ValueError(f"{name} has {what} values (dtype {raw.dtype}); pass real numbers")
+        if raw.dtype.kind != "O":
+            raise ValueError(f"{name} must be numeric, got dtype {raw.dtype}")
+        try:  # lists of numbers with None or mixed types: let numpy decide, once
+            raw = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    return np.asarray(raw, dtype=np.float64)
 
 
 def as_float_matrix(X: ArrayLike, name: str = "X", n_cols: int | None = None) -> FloatArray:

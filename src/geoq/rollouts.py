@@ -164,8 +164,11 @@ def collect_rollouts(
 
     Parameters
     ----------
-    n, steps : number of roll-outs and their length ``H``.
-    policy : ``actions [n] = policy(states [n, d], rng)``.
+    n, steps : number of roll-outs and their length ``H`` (integers >= 1).
+    policy : ``actions [n] = policy(states [n, d], rng)``; finite, else ``ValueError``.
+        With the default pendulum physics, actions are clipped to the torque range
+        before they are applied and recorded (as the env does); a custom ``step``
+        gets and records them as returned.
     rng : the only source of randomness (start noise, then policy noise).
     gamma : discount of the ``returns`` targets, default 0.95.
     start : start states, see :data:`StartSpec`; default hanging down with noise.
@@ -175,8 +178,17 @@ def collect_rollouts(
     -------
     ``n`` :class:`Rollout` records of length ``steps``.
     """
-    if n < 1 or steps < 1:
-        raise ValueError(f"n and steps must be >= 1, got n={n}, steps={steps}")
+    for name, value in (("n", n), ("steps", steps)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(
+            f"rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
+            f"got {type(rng).__name__}"
+        )
+    if not (isinstance(gamma, int | float) and 0.0 <= gamma <= 1.0):
+        raise ValueError(f"gamma must be a number in [0, 1], got {gamma!r}")
+    max_torque = PendulumParams().max_torque if step is None else None
     step_fn = resolve_step(step)
     s = initial_states(start, n, rng)
     d = s.shape[1]
@@ -185,9 +197,20 @@ def collect_rollouts(
     actions = np.empty((n, steps))
     rewards = np.empty((n, steps))
     for t in range(steps):
-        a = np.asarray(policy(s, rng), dtype=np.float64)
+        raw = np.asarray(policy(s, rng))
+        if np.iscomplexobj(raw) or raw.dtype.kind not in "fiub":
+            raise ValueError(f"policy returned actions of dtype {raw.dtype}; expected real numbers")
+        a = raw.astype(np.float64)
         if a.shape != (n,):
             raise ValueError(f"policy returned actions of shape {a.shape}; expected ({n},)")
+        if not np.all(np.isfinite(a)):
+            bad = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise ValueError(
+                f"policy returned a non-finite action at step {t} of roll-out {bad}; "
+                "a policy must return finite torques"
+            )
+        if max_torque is not None:  # the default physics clips: record what is applied
+            a = np.clip(a, -max_torque, max_torque)
         states[:, t] = s
         actions[:, t] = a
         s, r = step_fn(s, a)

@@ -170,3 +170,20 @@ def test_is_success_reported_only_at_truncation_and_matches_a_brute_force_check(
 def test_a_pendulum_left_hanging_fails() -> None:
     ok, _ = _episode_success(lambda s, rng: np.zeros(1), seed=0)
     assert not ok
+
+
+def test_start_noise_beyond_the_speed_limit_is_refused() -> None:
+    with pytest.raises(ValueError, match="observation space"):
+        PendulumSwingUpEnv(start_noise=9.0)
+    env = PendulumSwingUpEnv(start_noise=8.0)
+    for seed in range(20):
+        obs, _ = env.reset(seed=seed)
+        assert env.observation_space.contains(obs)
+
+
+@pytest.mark.parametrize("action", [np.array([1.0 + 2.0j]), np.array(["1.0"])])
+def test_step_refuses_non_real_actions(action: np.ndarray) -> None:
+    env = PendulumSwingUpEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="real torque"):
+        env.step(action)

@@ -100,7 +100,8 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
 
     - `params`: a `geoq.envs.PendulumParams` (defaults above); the spaces follow
       its `max_torque` and `max_speed`.
-    - `start_noise`: half-width of the uniform start noise (default `0.05`).
+    - `start_noise`: half-width of the uniform start noise (default `0.05`, at most
+      the speed limit so that every start state is in the observation space).
 
     ```python
     >>> import gymnasium as gym, numpy as np, geoq
@@ -129,6 +130,11 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
             raise ValueError(f"start_noise must be finite and >= 0, got {start_noise!r}")
         self.render_mode = render_mode
         self.params = params if params is not None else PendulumParams()
+        if start_noise > self.params.max_speed:
+            raise ValueError(
+                f"start_noise {start_noise!r} exceeds the speed limit {self.params.max_speed}: "
+                "start states would lie outside the observation space"
+            )
         self.start_noise = float(start_noise)
         p = self.params
         self.action_space = spaces.Box(
@@ -167,7 +173,10 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         """
         if self.state is None:
             raise RuntimeError("call reset() before step()")
-        u = np.asarray(action, dtype=np.float64)
+        raw = np.asarray(action)
+        if np.iscomplexobj(raw) or raw.dtype.kind not in "biuf":
+            raise ValueError(f"action has dtype {raw.dtype}; expected a real torque in [-5, 5]")
+        u = raw.astype(np.float64)
         if u.shape not in ((1,), ()):
             raise ValueError(f"action has shape {u.shape}; expected (1,) (one torque)")
         if not np.isfinite(u).all():

@@ -21,7 +21,7 @@ import numpy as np
 
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
-from geoq.experiments.stats import Interval, mean_interval, paired_difference
+from geoq.experiments.stats import Interval, log_interval, mean_interval, paired_difference
 
 __all__ = ["POSTERIOR_COLUMNS", "ClaimVerdict", "assess_claims", "render_report"]
 
@@ -142,12 +142,14 @@ def assess_claims(
     return out
 
 
-def _table(rows: Sequence[Mapping[str, Any]], column: str) -> list[str]:
+def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> list[str]:
+    """Per budget and kernel: geometric mean [log-scale 95% CI] (``log``) or mean [t CI]."""
     budgets = sorted({int(r["max_bv"]) for r in rows})
     kernels = [k for k in ("euclidean", *GRAPH_KERNELS) if any(r["kernel"] == k for r in rows)]
+    interval = log_interval if log else mean_interval
     lines = ["| max_bv | " + " | ".join(kernels) + " |", "|---" * (len(kernels) + 1) + "|"]
     for b in budgets:
-        cells = [str(mean_interval(_by(rows, k, b, column).values())) for k in kernels]
+        cells = [str(interval(_by(rows, k, b, column).values())) for k in kernels]
         lines.append(f"| {b} | " + " | ".join(cells) + " |")
     return lines
 
@@ -185,8 +187,12 @@ def render_report(
         "",
         f"geoq {version}, scale `{config['scale']}`, root seed {config['root_seed']}, "
         f"{n_seeds} seeds, budgets {config['budgets']}, wall time {wall_seconds:.0f} s.",
-        "Intervals are Student-t 95% confidence intervals over seeds; differences are paired "
-        "by seed (same training roll-outs, same evaluation pairs). Ground truth: Monte-Carlo "
+        "MSEs and normalised variances are summarised over seeds by their geometric mean "
+        "and a 95% Student-t interval of their logarithms mapped back (`[g / f, g * f]`, never "
+        "below 0; exact for lognormal values); differences are arithmetic, paired by seed "
+        "(same training roll-outs, same evaluation pairs), with Student-t 95% intervals; "
+        "basis-vector counts are arithmetic means with Student-t intervals. Ground truth: "
+        "Monte-Carlo "
         f"Q^pi at {config['eval_pairs']} pairs per seed from held-out roll-outs "
         f"({config['mc_rollouts']} roll-outs per pair); the paper's TD table is the secondary "
         "reference (`mse_td` in fig3.csv).",
@@ -247,7 +253,7 @@ def render_report(
         + ", ".join(f"`{k}` {v:.3g}" for k, v in maps.mse.items())
         + ".",
     ]
-    constant = mean_interval(
+    constant = log_interval(
         float(np.mean([r["mse_constant"] for r in rows if r["seed"] == s]))
         for s in sorted({r["seed"] for r in rows})
     )
@@ -260,7 +266,7 @@ def render_report(
             "",
             f"## Fig. 3, {title}",
             "",
-            "MSE against Monte-Carlo Q^pi (mean [95% CI]); predicting the mean training "
+            "MSE against Monte-Carlo Q^pi (geometric mean [95% CI]); predicting the mean training "
             f"return everywhere scores {constant}.",
             "",
             *_table(rows, mse_col),
@@ -272,7 +278,7 @@ def render_report(
             "Basis vectors actually kept (a graph-kernel BV set stops growing once the "
             "indefinite or stale Gram makes the novelty of new points negative):",
             "",
-            *_table(rows, "n_bv"),
+            *_table(rows, "n_bv", log=False),
             "",
             f"### The paper's claims, {posterior} posterior",
             "",

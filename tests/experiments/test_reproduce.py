@@ -30,6 +30,7 @@ def test_every_file_is_written(run_dir):
     for name in (
         "fig1.png",
         "fig1.csv",
+        "fig1_eps.csv",
         "fig2.png",
         "fig2.csv",
         "fig3.png",
@@ -56,6 +57,10 @@ def test_every_file_is_written(run_dir):
     assert config["config"]["seeds"] == 2 and "geoq_version" in config
     report = (run_dir / "REPORT.md").read_text()
     assert "## The paper's claims" in report and "nearest" in report
+    assert "### Edges versus eps" in report
+    edges = _read(run_dir / "fig1_eps.csv")
+    assert {r["mode"] for r in edges} == {"same nodes", "rebuilt"}
+    assert len(edges) == (len(TINY.graph_eps) + 1) * len(TINY.edge_count_eps)
 
 
 def test_rerun_resumes_and_gives_identical_files(run_dir, tmp_path):

@@ -38,6 +38,9 @@ class ReproConfig:
     """Roll-outs behind the Fig. 1 graphs (paper: 5)."""
     graph_eps: tuple[float, ...] = (0.3, 0.5)
     """Graph thresholds drawn in Fig. 1 (paper: 0.3 and 0.5)."""
+    edge_count_eps: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+    """Thresholds at which the Fig. 1 graphs' edges are counted (``fig1_eps.csv``): eq. 2
+    gives fewer edges for a larger ``eps``, where the paper's text says more."""
     graph_max_bv: int = 200
     """Basis budget of the GP that builds the Fig. 1 graphs."""
     eval_pairs: int = 150
@@ -92,8 +95,10 @@ class ReproConfig:
                 "kernels must include 'euclidean' (the baseline) and 'nearest' (Fig. 1) and "
                 f"come from {KERNEL_NAMES}, got {self.kernels}"
             )
-        if not self.graph_eps or any(not 0.0 < e < 1.0 for e in self.graph_eps):
-            raise ValueError(f"graph_eps values must be in (0, 1), got {self.graph_eps}")
+        for name in ("graph_eps", "edge_count_eps"):
+            values = getattr(self, name)
+            if not values or any(not 0.0 < e < 1.0 for e in values):
+                raise ValueError(f"{name} values must be in (0, 1), got {values}")
 
     def replace(self, **changes: Any) -> ReproConfig:
         return replace(self, **changes)
@@ -103,6 +108,7 @@ class ReproConfig:
         out["learner"] = self.learner.as_dict()
         out["budgets"] = list(self.budgets)
         out["graph_eps"] = list(self.graph_eps)
+        out["edge_count_eps"] = list(self.edge_count_eps)
         out["kernels"] = list(self.kernels)
         return out
 
@@ -145,7 +151,7 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
     if unknown:
         raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
     changes = dict(overrides)
-    for name in ("budgets", "graph_eps", "kernels"):
+    for name in ("budgets", "graph_eps", "edge_count_eps", "kernels"):
         if name in changes:
             changes[name] = tuple(changes[name])
     if "learner" in changes:

@@ -154,6 +154,48 @@ def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> 
     return lines
 
 
+def _edge_count_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The edges-versus-eps table of ``fig1_eps.csv`` (eq. 2 as written)."""
+    if not rows:
+        return []
+    node_eps = sorted({float(r["node_eps"]) for r in rows if r["mode"] == "same nodes"})
+    eps_values = sorted({float(r["eps"]) for r in rows})
+    same = {(float(r["node_eps"]), float(r["eps"])): r for r in rows if r["mode"] == "same nodes"}
+    rebuilt = {float(r["eps"]): r for r in rows if r["mode"] == "rebuilt"}
+
+    def cell(r: Mapping[str, Any] | None) -> str:
+        if r is None:
+            return "-"
+        return f"{r['n_edges']} / {float(r['mean_degree']):.1f} / {r['n_components']}"
+
+    lines = [
+        "",
+        "### Edges versus eps",
+        "",
+        'The paper\'s text says the number of edges "increases exponentially with eps", but '
+        "its eq. 2 links two nodes iff `exp(-||x_i - x_t||^2) > eps`, i.e. iff "
+        "`||x_i - x_t||^2 < -ln(eps)`: a larger `eps` gives *fewer* edges, so Fig. 1 (b) "
+        "(`eps = 0.5`) must have fewer edges than (a). geoq follows eq. 2 as written. "
+        "Each cell is edges / mean degree / connected components (fig1_eps.csv): "
+        "*same nodes* re-links the basis set kept at the Fig. 1 `eps` by eq. 2 at each `eps` "
+        "(the threshold alone), *rebuilt* fits the GP again with that `eps` (the node set "
+        "changes too: novelty depends on the kernel).",
+        "",
+        "| eps | -ln eps | "
+        + " | ".join(f"same nodes as eps = {e}" for e in node_eps)
+        + " | rebuilt: nodes | rebuilt |",
+        "|---" * (4 + len(node_eps)) + "|",
+    ]
+    for eps in eps_values:
+        r = rebuilt.get(eps)
+        lines.append(
+            f"| {eps:g} | {-np.log(eps):.3f} | "
+            + " | ".join(cell(same.get((e0, eps))) for e0 in node_eps)
+            + f" | {r['n_nodes'] if r is not None else '-'} | {cell(r)} |"
+        )
+    return lines
+
+
 def _evidence_fit_line(ev: Mapping[str, Any]) -> str:
     """How the evidence fit went: start and end, restarts, convergence, bounds (issue 14)."""
     runs = ", ".join(f"{v:.1f}" for v in ev["log_evidence_runs"])
@@ -177,6 +219,7 @@ def render_report(
     rows: Sequence[Mapping[str, Any]],
     graphs: Sequence[GraphSnapshot],
     maps: ValueMaps,
+    edge_counts: Sequence[Mapping[str, Any]] = (),
     wall_seconds: float,
     version: str,
 ) -> str:
@@ -244,6 +287,7 @@ def render_report(
             f"{s['max_degree']} | {s['isolated_nodes']} | {s['n_components']} | "
             f"{s['largest_component_fraction']:.0%} |"
         )
+    lines += _edge_count_lines(edge_counts)
     lines += [
         "",
         "## Fig. 2: value maps Q(s, f(s))",

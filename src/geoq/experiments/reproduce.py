@@ -6,7 +6,7 @@ Pipeline (data flows one way)::
     ground truth per seed (sweep)   ->  cells/truth/*.json
     Fig. 3 cells (sweep)            ->  cells/fig3/*.json -> fig3.csv (the paper's kernels),
                                         fig3_all.csv (+ resistance), fig3*.png
-    Fig. 1 graphs, Fig. 2 maps      ->  fig1.csv/png, fig2.csv/png
+    Fig. 1 graphs, Fig. 2 maps      ->  fig1.csv/png, fig1_eps.csv (edges vs eps), fig2.csv/png
     everything                      ->  config.json, REPORT.md
 
 Every file is written atomically; the sweeps keep one file per finished cell,
@@ -31,7 +31,7 @@ from matplotlib.figure import Figure
 import geoq
 from geoq._io import atomic_write_bytes, atomic_write_json, atomic_write_text
 from geoq.experiments.config import ReproConfig, config_for_scale
-from geoq.experiments.fig1 import build_graphs
+from geoq.experiments.fig1 import EDGE_COUNT_COLUMNS, build_graphs, edge_counts_by_eps
 from geoq.experiments.fig2 import value_maps
 from geoq.experiments.fig3 import FIG3_COLUMNS, BudgetCell, TruthCell, budget_cell, truth_cell
 from geoq.experiments.report import render_report
@@ -170,6 +170,14 @@ def reproduce(
             graph_rollouts, tuning.configs["nearest"], cfg.graph_eps, cfg.graph_max_bv
         )
         write_csv(out / "fig1.csv", [{"eps": g.eps, **g.stats} for g in graphs])
+        edge_counts = edge_counts_by_eps(
+            graph_rollouts,
+            tuning.configs["nearest"],
+            cfg.graph_eps,
+            cfg.edge_count_eps,
+            cfg.graph_max_bv,
+        )
+        write_csv(out / "fig1_eps.csv", edge_counts, EDGE_COUNT_COLUMNS)
         save_figure(plot_graphs(graphs), out / "fig1.png")
 
         map_rollouts = collect_rollouts(
@@ -213,6 +221,7 @@ def reproduce(
         tuning=tuning.as_dict(),
         rows=rows,
         graphs=graphs,
+        edge_counts=edge_counts,
         maps=maps,
         wall_seconds=wall,
         version=geoq.__version__,

@@ -84,3 +84,22 @@ def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
         config_with_overrides(SCALES["quick"], {"seedz": 2})
     with pytest.raises(ValueError, match="budgets"):
         config_with_overrides(SCALES["quick"], {"budgets": [0]})
+
+
+def test_variant_learners_change_only_what_they_name():
+    from geoq.experiments.config import RAW_UNITS, variant_learner
+    from geoq.learners import QGPConfig
+
+    tuned = QGPConfig(
+        kernel="interpolated", eps=0.5, sigma_sp=0.03, amplitude=3.7, noise=0.2,
+        normalize_weights=True, attach_weights=True, sigma_se=0.1,
+    )  # fmt: skip
+    f = variant_learner("faithful", tuned)
+    assert f.scaling == RAW_UNITS and RAW_UNITS.scale == (1.0, 1.0, 1.0)
+    assert (f.amplitude, f.sigma_sp, f.eps) == (1.0, 1.0, 0.3)
+    assert not f.normalize_weights and not f.attach_weights  # the literal eq. 5 sum
+    assert (f.noise, f.sigma_se, f.kernel) == (0.2, 0.1, "interpolated")  # not stated: tuned
+    p = variant_learner("pd_novelty", tuned)
+    assert p == tuned.replace(pd_novelty=True)
+    with pytest.raises(ValueError, match="variant"):
+        variant_learner("literal", tuned)

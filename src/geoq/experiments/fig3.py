@@ -165,8 +165,9 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         rng_for(cell.root_seed, cell.seed, STREAM["train"]),
         gamma=float(cell.truth["gamma"]),
     )
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), np.errstate(over="ignore"):
         # Repairs of the indefinite geodesic Gram are expected; they are counted in the row.
+        # A diverged posterior scores an MSE of inf (counted in REPORT.md), not a warning.
         warnings.simplefilter("ignore", NumericalWarning)
         learner = GPQFunction(config).fit(rollouts)
         assert learner.gp_ is not None

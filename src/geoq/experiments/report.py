@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from geoq.experiments.config import VARIANTS
+from geoq.experiments.config import VARIANT_KERNELS, VARIANTS
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
 from geoq.experiments.stats import Interval, log_interval, mean_interval, paired_difference
@@ -197,6 +197,14 @@ def _edge_count_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return lines
 
 
+def _diverged(rows: Sequence[Mapping[str, Any]], kernel: str) -> str:
+    """``"`kernel` a online / b refit of n"``: cells beyond ``DIVERGED`` x the constant MSE."""
+    sub = [r for r in rows if r["kernel"] == kernel]
+    online = sum(not float(r["mse"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
+    refit = sum(not float(r["mse_refit"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
+    return f"`{kernel}` {online} online / {refit} refit of {len(sub)}"
+
+
 def _variant_lines(
     rows: Sequence[Mapping[str, Any]], variant_rows: Sequence[Mapping[str, Any]]
 ) -> list[str]:
@@ -236,6 +244,12 @@ def _variant_lines(
             "Basis vectors kept:",
             "",
             *_table(sub, "n_bv", log=False),
+            "",
+            f"Cells whose MSE exceeds {DIVERGED:g}x that of the constant predictor: "
+            + ", ".join(
+                _diverged(sub, g) for g in VARIANT_KERNELS if any(r["kernel"] == g for r in sub)
+            )
+            + " (non-finite MSEs are left out of the intervals).",
             "",
         ]
     verdicts = {
@@ -440,13 +454,11 @@ def render_report(
     clipped = sum(int(r["variance_clipped"]) for r in rows)
     negative = sum(int(r["negative_novelty"]) for r in rows)
     floor = float(np.mean([r["mc_noise_floor"] for r in rows]))
-    diverged = []
-    for k in ("euclidean", *GRAPH_KERNELS):
-        sub = [r for r in rows if r["kernel"] == k]
-        if sub:
-            online = sum(float(r["mse"]) > DIVERGED * float(r["mse_constant"]) for r in sub)
-            refit = sum(float(r["mse_refit"]) > DIVERGED * float(r["mse_constant"]) for r in sub)
-            diverged.append(f"`{k}` {online} online / {refit} refit of {len(sub)}")
+    diverged = [
+        _diverged(rows, k)
+        for k in ("euclidean", *GRAPH_KERNELS)
+        if any(r["kernel"] == k for r in rows)
+    ]
     lines += [
         "",
         "## Numerical health",

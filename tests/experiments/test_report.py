@@ -103,3 +103,27 @@ def test_variant_learners_change_only_what_they_name():
     assert p == tuned.replace(pd_novelty=True)
     with pytest.raises(ValueError, match="variant"):
         variant_learner("literal", tuned)
+
+
+def test_variant_claims_are_undetermined_when_the_variant_diverged():
+    from geoq.experiments.report import _variant_lines
+
+    budgets = [5, 50]
+    mse_euc = dict.fromkeys(budgets, 1.0)
+    nv = dict.fromkeys(budgets, 0.2)
+    rows = _rows(dict.fromkeys(budgets, 2.0), mse_euc, nv, nv)
+    for r in rows:
+        r["mse_refit"], r["normalized_variance_refit"], r["n_bv"] = r["mse"], 0.2, 5
+    rows = [r | {"mse_constant": 10.0} for r in rows]
+    variant = [
+        r | {"variant": "pd_novelty", "mse": float("inf")} for r in rows if r["kernel"] == "nearest"
+    ]
+    text = "\n".join(_variant_lines(rows, variant))
+    assert "not finite" in text  # the online MSE table
+    assert "`nearest` 16 online / 0 refit of 16" in text
+    online = [ln for ln in text.splitlines() if "| online | `nearest` |" in ln]
+    assert online and all(
+        ("undetermined" in ln) != ("variance" in ln) for ln in online
+    )  # MSE claims undetermined; the variance claim still tested
+    refit = [ln for ln in text.splitlines() if "| refit | `nearest` |" in ln]
+    assert refit and not any("undetermined" in ln for ln in refit)

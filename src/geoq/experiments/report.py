@@ -150,7 +150,11 @@ def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> 
     interval = log_interval if log else mean_interval
     lines = ["| max_bv | " + " | ".join(kernels) + " |", "|---" * (len(kernels) + 1) + "|"]
     for b in budgets:
-        cells = [str(interval(_by(rows, k, b, column).values())) for k in kernels]
+        cells = []
+        for k in kernels:
+            values = _by(rows, k, b, column).values()
+            iv = interval(values)
+            cells.append(str(iv) if iv.n or not values else "not finite")
         lines.append(f"| {b} | " + " | ".join(cells) + " |")
     return lines
 
@@ -203,6 +207,15 @@ def _diverged(rows: Sequence[Mapping[str, Any]], kernel: str) -> str:
     online = sum(not float(r["mse"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
     refit = sum(not float(r["mse_refit"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
     return f"`{kernel}` {online} online / {refit} refit of {len(sub)}"
+
+
+def _finite_enough(rows: Sequence[Mapping[str, Any]], kernel: str, posterior: str) -> bool:
+    """Whether every budget has >= 2 seeds with a finite MSE of ``kernel`` (else no test)."""
+    column = POSTERIOR_COLUMNS[posterior][0]
+    budgets = {int(r["max_bv"]) for r in rows if r["kernel"] == kernel}
+    return all(
+        sum(np.isfinite(v) for v in _by(rows, kernel, b, column).values()) >= 2 for b in budgets
+    )
 
 
 def _variant_lines(
@@ -273,7 +286,14 @@ def _variant_lines(
                 cells = [verdicts[(v, posterior)].get(g) for v in ("tuned", *names)]
                 if all(c is None for c in cells[1:]):
                     continue
-                text = [c[i]["verdict"] if c is not None else "-" for c in cells]
+                text = [
+                    "undetermined (MSE not finite)"
+                    if c is not None
+                    and "variance" not in claim  # the other three claims test MSEs
+                    and not _finite_enough(sub, g, posterior)
+                    else (c[i]["verdict"] if c is not None else "-")
+                    for c, sub in zip(cells, by_variant.values(), strict=True)
+                ]
                 lines.append(f"| {claim} | {posterior} | `{g}` | " + " | ".join(text) + " |")
     lines.append("")
     return lines

@@ -16,6 +16,7 @@ from _tiny import TINY
 from typer.testing import CliRunner
 
 from geoq.cli import app
+from geoq.experiments.config import VARIANT_KERNELS
 from geoq.experiments.fig3 import FIG3_COLUMNS
 
 runner = CliRunner()
@@ -85,7 +86,10 @@ def test_killed_run_resumes_to_identical_files(tmp_path: Path, tiny_json: Path) 
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
     finished = {p.name: p.read_bytes() for p in cells.glob("*.json")}
-    n_cells = len(TINY.kernels) * TINY.seeds * len(TINY.budgets)
+    learners = len(TINY.kernels) + len(TINY.variants) * len(
+        set(VARIANT_KERNELS) & set(TINY.kernels)
+    )
+    n_cells = learners * TINY.seeds * len(TINY.budgets)
     assert 3 <= len(finished) < n_cells, "the kill must land mid-sweep"
     assert not (out / "fig3.csv").exists()
 
@@ -93,5 +97,8 @@ def test_killed_run_resumes_to_identical_files(tmp_path: Path, tiny_json: Path) 
     assert {p.name: p.read_bytes() for p in cells.glob("*.json") if p.name in finished} == finished
     assert len(list(cells.glob("*.json"))) == n_cells
     _run(tmp_path / "clean", tiny_json)
-    for name in ("fig3.csv", "fig3_all.csv", "fig1.csv", "fig2.csv", "tuning.csv"):
+    for name in (
+        "fig3.csv", "fig3_all.csv", "fig3_variants.csv", "fig1.csv", "fig1_eps.csv", "fig2.csv",
+        "tuning.csv",
+    ):  # fmt: skip
         assert (out / name).read_bytes() == (tmp_path / "clean" / name).read_bytes(), name

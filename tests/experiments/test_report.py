@@ -84,3 +84,46 @@ def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
         config_with_overrides(SCALES["quick"], {"seedz": 2})
     with pytest.raises(ValueError, match="budgets"):
         config_with_overrides(SCALES["quick"], {"budgets": [0]})
+
+
+def test_variant_learners_change_only_what_they_name():
+    from geoq.experiments.config import RAW_UNITS, variant_learner
+    from geoq.learners import QGPConfig
+
+    tuned = QGPConfig(
+        kernel="interpolated", eps=0.5, sigma_sp=0.03, amplitude=3.7, noise=0.2,
+        normalize_weights=True, attach_weights=True, sigma_se=0.1,
+    )  # fmt: skip
+    f = variant_learner("faithful", tuned)
+    assert f.scaling == RAW_UNITS and RAW_UNITS.scale == (1.0, 1.0, 1.0)
+    assert (f.amplitude, f.sigma_sp, f.eps) == (1.0, 1.0, 0.3)
+    assert not f.normalize_weights and not f.attach_weights  # the literal eq. 5 sum
+    assert (f.noise, f.sigma_se, f.kernel) == (0.2, 0.1, "interpolated")  # not stated: tuned
+    p = variant_learner("pd_novelty", tuned)
+    assert p == tuned.replace(pd_novelty=True)
+    with pytest.raises(ValueError, match="variant"):
+        variant_learner("literal", tuned)
+
+
+def test_variant_claims_are_undetermined_when_the_variant_diverged():
+    from geoq.experiments.report import _variant_lines
+
+    budgets = [5, 50]
+    mse_euc = dict.fromkeys(budgets, 1.0)
+    nv = dict.fromkeys(budgets, 0.2)
+    rows = _rows(dict.fromkeys(budgets, 2.0), mse_euc, nv, nv)
+    for r in rows:
+        r["mse_refit"], r["normalized_variance_refit"], r["n_bv"] = r["mse"], 0.2, 5
+    rows = [r | {"mse_constant": 10.0} for r in rows]
+    variant = [
+        r | {"variant": "pd_novelty", "mse": float("inf")} for r in rows if r["kernel"] == "nearest"
+    ]
+    text = "\n".join(_variant_lines(rows, variant))
+    assert "not finite" in text  # the online MSE table
+    assert "`nearest` 16 online / 0 refit of 16" in text
+    online = [ln for ln in text.splitlines() if "| online | `nearest` |" in ln]
+    assert online and all(
+        ("undetermined" in ln) != ("variance" in ln) for ln in online
+    )  # MSE claims undetermined; the variance claim still tested
+    refit = [ln for ln in text.splitlines() if "| refit | `nearest` |" in ln]
+    assert refit and not any("undetermined" in ln for ln in refit)

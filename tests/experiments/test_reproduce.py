@@ -30,6 +30,7 @@ def test_every_file_is_written(run_dir):
     for name in (
         "fig1.png",
         "fig1.csv",
+        "fig1_eps.csv",
         "fig2.png",
         "fig2.csv",
         "fig3.png",
@@ -56,6 +57,18 @@ def test_every_file_is_written(run_dir):
     assert config["config"]["seeds"] == 2 and "geoq_version" in config
     report = (run_dir / "REPORT.md").read_text()
     assert "## The paper's claims" in report and "nearest" in report
+    assert "### Edges versus eps" in report
+    variants = _read(run_dir / "fig3_variants.csv")
+    assert {(r["variant"], r["kernel"]) for r in variants} == {
+        (v, k) for v in ("faithful", "pd_novelty") for k in ("nearest", "interpolated")
+    }
+    assert len(variants) == 2 * 2 * 2 * 2  # variants x kernels x budgets x seeds
+    for r in variants:
+        assert int(r["n_bv"]) <= int(r["max_bv"]) and float(r["mse_refit"]) >= 0
+    assert "### Do the paper's claims change?" in report
+    edges = _read(run_dir / "fig1_eps.csv")
+    assert {r["mode"] for r in edges} == {"same nodes", "rebuilt"}
+    assert len(edges) == (len(TINY.graph_eps) + 1) * len(TINY.edge_count_eps)
 
 
 def test_rerun_resumes_and_gives_identical_files(run_dir, tmp_path):

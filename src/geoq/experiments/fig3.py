@@ -32,7 +32,14 @@ from geoq.learners import GPQFunction, QGPConfig
 from geoq.policies import default_policy
 from geoq.rollouts import collect_rollouts
 
-__all__ = ["FIG3_COLUMNS", "BudgetCell", "TruthCell", "budget_cell", "truth_cell"]
+__all__ = [
+    "FIG3_COLUMNS",
+    "VARIANT_COLUMNS",
+    "BudgetCell",
+    "TruthCell",
+    "budget_cell",
+    "truth_cell",
+]
 
 #: Column order of ``fig3.csv``.
 FIG3_COLUMNS = (
@@ -54,6 +61,8 @@ FIG3_COLUMNS = (
     "eig_clips",
     "q_resyncs",
 )
+#: Column order of ``fig3_variants.csv`` (learners run beside the tuned ones).
+VARIANT_COLUMNS = ("variant", *FIG3_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -122,6 +131,9 @@ class BudgetCell:
     learner: dict[str, Any]
     truth_dir: str
     truth: dict[str, Any]
+    variant: str = "tuned"
+    """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.config.VARIANTS`;
+    a variant's row has no per-roll-out refit columns (its cost is not needed there)."""
 
 
 def load_truth(truth_dir: str | Path, truth: dict[str, Any]) -> dict[str, Any]:
@@ -153,8 +165,9 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         rng_for(cell.root_seed, cell.seed, STREAM["train"]),
         gamma=float(cell.truth["gamma"]),
     )
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), np.errstate(over="ignore"):
         # Repairs of the indefinite geodesic Gram are expected; they are counted in the row.
+        # A diverged posterior scores an MSE of inf (counted in REPORT.md), not a warning.
         warnings.simplefilter("ignore", NumericalWarning)
         learner = GPQFunction(config).fit(rollouts)
         assert learner.gp_ is not None
@@ -181,6 +194,9 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         mean, std = learner.predict(states, actions, return_std=True)
         row["mse_refit"] = mse(mean, mc_mean)
         row["normalized_variance_refit"] = normalized_variance(std**2, prior)
+        if cell.variant != "tuned":
+            row["variant"] = cell.variant
+            return row
         # A refit after every roll-out changes what the later online updates start from:
         # a different learner, fitted again on the same data.
         episodic = GPQFunction(config.replace(refit="episode")).fit(rollouts)

@@ -19,9 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from geoq.experiments.config import VARIANT_KERNELS, VARIANTS
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
-from geoq.experiments.stats import Interval, mean_interval, paired_difference
+from geoq.experiments.stats import Interval, log_interval, mean_interval, paired_difference
 
 __all__ = ["POSTERIOR_COLUMNS", "ClaimVerdict", "assess_claims", "render_report"]
 
@@ -142,13 +143,159 @@ def assess_claims(
     return out
 
 
-def _table(rows: Sequence[Mapping[str, Any]], column: str) -> list[str]:
+def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> list[str]:
+    """Per budget and kernel: geometric mean [log-scale 95% CI] (``log``) or mean [t CI]."""
     budgets = sorted({int(r["max_bv"]) for r in rows})
     kernels = [k for k in ("euclidean", *GRAPH_KERNELS) if any(r["kernel"] == k for r in rows)]
+    interval = log_interval if log else mean_interval
     lines = ["| max_bv | " + " | ".join(kernels) + " |", "|---" * (len(kernels) + 1) + "|"]
     for b in budgets:
-        cells = [str(mean_interval(_by(rows, k, b, column).values())) for k in kernels]
+        cells = []
+        for k in kernels:
+            values = _by(rows, k, b, column).values()
+            iv = interval(values)
+            cells.append(str(iv) if iv.n or not values else "not finite")
         lines.append(f"| {b} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _edge_count_lines(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The edges-versus-eps table of ``fig1_eps.csv`` (eq. 2 as written)."""
+    if not rows:
+        return []
+    node_eps = sorted({float(r["node_eps"]) for r in rows if r["mode"] == "same nodes"})
+    eps_values = sorted({float(r["eps"]) for r in rows})
+    same = {(float(r["node_eps"]), float(r["eps"])): r for r in rows if r["mode"] == "same nodes"}
+    rebuilt = {float(r["eps"]): r for r in rows if r["mode"] == "rebuilt"}
+
+    def cell(r: Mapping[str, Any] | None) -> str:
+        if r is None:
+            return "-"
+        return f"{r['n_edges']} / {float(r['mean_degree']):.1f} / {r['n_components']}"
+
+    lines = [
+        "",
+        "### Edges versus eps",
+        "",
+        'The paper\'s text says the number of edges "increases exponentially with eps", but '
+        "its eq. 2 links two nodes iff `exp(-||x_i - x_t||^2) > eps`, i.e. iff "
+        "`||x_i - x_t||^2 < -ln(eps)`: a larger `eps` gives *fewer* edges, so Fig. 1 (b) "
+        "(`eps = 0.5`) must have fewer edges than (a). geoq follows eq. 2 as written. "
+        "Each cell is edges / mean degree / connected components (fig1_eps.csv): "
+        "*same nodes* re-links the basis set kept at the Fig. 1 `eps` by eq. 2 at each `eps` "
+        "(the threshold alone), *rebuilt* fits the GP again with that `eps` (the node set "
+        "changes too: novelty depends on the kernel).",
+        "",
+        "| eps | -ln eps | "
+        + " | ".join(f"same nodes as eps = {e}" for e in node_eps)
+        + " | rebuilt: nodes | rebuilt |",
+        "|---" * (4 + len(node_eps)) + "|",
+    ]
+    for eps in eps_values:
+        r = rebuilt.get(eps)
+        lines.append(
+            f"| {eps:g} | {-np.log(eps):.3f} | "
+            + " | ".join(cell(same.get((e0, eps))) for e0 in node_eps)
+            + f" | {r['n_nodes'] if r is not None else '-'} | {cell(r)} |"
+        )
+    return lines
+
+
+def _diverged(rows: Sequence[Mapping[str, Any]], kernel: str) -> str:
+    """``"`kernel` a online / b refit of n"``: cells beyond ``DIVERGED`` x the constant MSE."""
+    sub = [r for r in rows if r["kernel"] == kernel]
+    online = sum(not float(r["mse"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
+    refit = sum(not float(r["mse_refit"]) <= DIVERGED * float(r["mse_constant"]) for r in sub)
+    return f"`{kernel}` {online} online / {refit} refit of {len(sub)}"
+
+
+def _finite_enough(rows: Sequence[Mapping[str, Any]], kernel: str, posterior: str) -> bool:
+    """Whether every budget has >= 2 seeds with a finite MSE of ``kernel`` (else no test)."""
+    column = POSTERIOR_COLUMNS[posterior][0]
+    budgets = {int(r["max_bv"]) for r in rows if r["kernel"] == kernel}
+    return all(
+        sum(np.isfinite(v) for v in _by(rows, kernel, b, column).values()) >= 2 for b in budgets
+    )
+
+
+def _variant_lines(
+    rows: Sequence[Mapping[str, Any]], variant_rows: Sequence[Mapping[str, Any]]
+) -> list[str]:
+    """Fig. 3 for the learners run beside the tuned ones, and the claims' verdicts for each."""
+    names = [v for v in VARIANTS if any(r["variant"] == v for r in variant_rows)]
+    if not names:
+        return []
+    baseline = [r for r in rows if r["kernel"] == "euclidean"]
+    by_variant = {
+        "tuned": list(rows),
+        **{v: baseline + [r for r in variant_rows if r["variant"] == v] for v in names},
+    }
+    lines = [
+        "## Variants beside the tuned learners (fig3_variants.csv)",
+        "",
+        "Same seeds, roll-outs and evaluation pairs as above; the `euclidean` column is the "
+        "tuned standard GP in every table (the paper does not state its settings).",
+        "",
+    ]
+    for v in names:
+        sub = by_variant[v]
+        lines += [
+            f"### `{v}`: {VARIANTS[v]}",
+            "",
+            "MSE against Monte-Carlo Q^pi, online posterior:",
+            "",
+            *_table(sub, "mse"),
+            "",
+            "MSE, refitted posterior:",
+            "",
+            *_table(sub, "mse_refit"),
+            "",
+            "Normalised predictive variance, online posterior:",
+            "",
+            *_table(sub, "normalized_variance"),
+            "",
+            "Basis vectors kept:",
+            "",
+            *_table(sub, "n_bv", log=False),
+            "",
+            f"Cells whose MSE exceeds {DIVERGED:g}x that of the constant predictor: "
+            + ", ".join(
+                _diverged(sub, g) for g in VARIANT_KERNELS if any(r["kernel"] == g for r in sub)
+            )
+            + " (non-finite MSEs are left out of the intervals).",
+            "",
+        ]
+    verdicts = {
+        (v, posterior): assess_claims(sub, posterior)
+        for v, sub in by_variant.items()
+        for posterior in POSTERIOR_COLUMNS
+    }
+    lines += [
+        "### Do the paper's claims change?",
+        "",
+        "Verdicts of the four claims (tests as in the sections above) with the tuned learners "
+        "and with each variant:",
+        "",
+        "| claim | posterior | kernel | " + " | ".join(["tuned", *names]) + " |",
+        "|---" * (4 + len(names)) + "|",
+    ]
+    claims = [c["claim"] for c in next(iter(verdicts[("tuned", "online")].values()), [])]
+    for i, claim in enumerate(claims):
+        for posterior in POSTERIOR_COLUMNS:
+            for g in GRAPH_KERNELS:
+                cells = [verdicts[(v, posterior)].get(g) for v in ("tuned", *names)]
+                if all(c is None for c in cells[1:]):
+                    continue
+                text = [
+                    "undetermined (MSE not finite)"
+                    if c is not None
+                    and "variance" not in claim  # the other three claims test MSEs
+                    and not _finite_enough(sub, g, posterior)
+                    else (c[i]["verdict"] if c is not None else "-")
+                    for c, sub in zip(cells, by_variant.values(), strict=True)
+                ]
+                lines.append(f"| {claim} | {posterior} | `{g}` | " + " | ".join(text) + " |")
+    lines.append("")
     return lines
 
 
@@ -175,6 +322,8 @@ def render_report(
     rows: Sequence[Mapping[str, Any]],
     graphs: Sequence[GraphSnapshot],
     maps: ValueMaps,
+    edge_counts: Sequence[Mapping[str, Any]] = (),
+    variant_rows: Sequence[Mapping[str, Any]] = (),
     wall_seconds: float,
     version: str,
 ) -> str:
@@ -185,8 +334,12 @@ def render_report(
         "",
         f"geoq {version}, scale `{config['scale']}`, root seed {config['root_seed']}, "
         f"{n_seeds} seeds, budgets {config['budgets']}, wall time {wall_seconds:.0f} s.",
-        "Intervals are Student-t 95% confidence intervals over seeds; differences are paired "
-        "by seed (same training roll-outs, same evaluation pairs). Ground truth: Monte-Carlo "
+        "MSEs and normalised variances are summarised over seeds by their geometric mean "
+        "and a 95% Student-t interval of their logarithms mapped back (`[g / f, g * f]`, never "
+        "below 0; exact for lognormal values); differences are arithmetic, paired by seed "
+        "(same training roll-outs, same evaluation pairs), with Student-t 95% intervals; "
+        "basis-vector counts are arithmetic means with Student-t intervals. Ground truth: "
+        "Monte-Carlo "
         f"Q^pi at {config['eval_pairs']} pairs per seed from held-out roll-outs "
         f"({config['mc_rollouts']} roll-outs per pair); the paper's TD table is the secondary "
         "reference (`mse_td` in fig3.csv).",
@@ -238,6 +391,7 @@ def render_report(
             f"{s['max_degree']} | {s['isolated_nodes']} | {s['n_components']} | "
             f"{s['largest_component_fraction']:.0%} |"
         )
+    lines += _edge_count_lines(edge_counts)
     lines += [
         "",
         "## Fig. 2: value maps Q(s, f(s))",
@@ -247,7 +401,7 @@ def render_report(
         + ", ".join(f"`{k}` {v:.3g}" for k, v in maps.mse.items())
         + ".",
     ]
-    constant = mean_interval(
+    constant = log_interval(
         float(np.mean([r["mse_constant"] for r in rows if r["seed"] == s]))
         for s in sorted({r["seed"] for r in rows})
     )
@@ -260,7 +414,7 @@ def render_report(
             "",
             f"## Fig. 3, {title}",
             "",
-            "MSE against Monte-Carlo Q^pi (mean [95% CI]); predicting the mean training "
+            "MSE against Monte-Carlo Q^pi (geometric mean [95% CI]); predicting the mean training "
             f"return everywhere scores {constant}.",
             "",
             *_table(rows, mse_col),
@@ -272,7 +426,7 @@ def render_report(
             "Basis vectors actually kept (a graph-kernel BV set stops growing once the "
             "indefinite or stale Gram makes the novelty of new points negative):",
             "",
-            *_table(rows, "n_bv"),
+            *_table(rows, "n_bv", log=False),
             "",
             f"### The paper's claims, {posterior} posterior",
             "",
@@ -297,6 +451,7 @@ def render_report(
                     f"(graph kernel - euclidean): {ev}."
                 )
             lines.append("")
+    lines += _variant_lines(rows, variant_rows)
     lines += [
         "## Refits against staleness (SPEC §1 item 2)",
         "",
@@ -319,13 +474,11 @@ def render_report(
     clipped = sum(int(r["variance_clipped"]) for r in rows)
     negative = sum(int(r["negative_novelty"]) for r in rows)
     floor = float(np.mean([r["mc_noise_floor"] for r in rows]))
-    diverged = []
-    for k in ("euclidean", *GRAPH_KERNELS):
-        sub = [r for r in rows if r["kernel"] == k]
-        if sub:
-            online = sum(float(r["mse"]) > DIVERGED * float(r["mse_constant"]) for r in sub)
-            refit = sum(float(r["mse_refit"]) > DIVERGED * float(r["mse_constant"]) for r in sub)
-            diverged.append(f"`{k}` {online} online / {refit} refit of {len(sub)}")
+    diverged = [
+        _diverged(rows, k)
+        for k in ("euclidean", *GRAPH_KERNELS)
+        if any(r["kernel"] == k for r in rows)
+    ]
     lines += [
         "",
         "## Numerical health",

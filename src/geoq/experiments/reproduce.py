@@ -5,8 +5,9 @@ Pipeline (data flows one way)::
     tuning (evidence + validation)  ->  tuning.json, tuning.csv
     ground truth per seed (sweep)   ->  cells/truth/*.json
     Fig. 3 cells (sweep)            ->  cells/fig3/*.json -> fig3.csv (the paper's kernels),
-                                        fig3_all.csv (+ resistance), fig3*.png
-    Fig. 1 graphs, Fig. 2 maps      ->  fig1.csv/png, fig2.csv/png
+                                        fig3_all.csv (+ resistance), fig3*.png,
+                                        fig3_variants.csv (faithful, pd_novelty)
+    Fig. 1 graphs, Fig. 2 maps      ->  fig1.csv/png, fig1_eps.csv (edges vs eps), fig2.csv/png
     everything                      ->  config.json, REPORT.md
 
 Every file is written atomically; the sweeps keep one file per finished cell,
@@ -30,10 +31,23 @@ from matplotlib.figure import Figure
 
 import geoq
 from geoq._io import atomic_write_bytes, atomic_write_json, atomic_write_text
-from geoq.experiments.config import ReproConfig, config_for_scale
-from geoq.experiments.fig1 import build_graphs
+from geoq.experiments.config import (
+    VARIANT_KERNELS,
+    VARIANTS,
+    ReproConfig,
+    config_for_scale,
+    variant_learner,
+)
+from geoq.experiments.fig1 import EDGE_COUNT_COLUMNS, build_graphs, edge_counts_by_eps
 from geoq.experiments.fig2 import value_maps
-from geoq.experiments.fig3 import FIG3_COLUMNS, BudgetCell, TruthCell, budget_cell, truth_cell
+from geoq.experiments.fig3 import (
+    FIG3_COLUMNS,
+    VARIANT_COLUMNS,
+    BudgetCell,
+    TruthCell,
+    budget_cell,
+    truth_cell,
+)
 from geoq.experiments.report import render_report
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_spec, run_sweep
@@ -148,10 +162,41 @@ def reproduce(
         for k in cfg.kernels
         for b in cfg.budgets
     ]
-    rows = run_sweep(cells, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
+    cells += [
+        BudgetCell(
+            kernel=k,
+            max_bv=b,
+            seed=tc.seed,
+            root_seed=cfg.root_seed,
+            train_rollouts=cfg.train_rollouts,
+            train_steps=cfg.train_steps,
+            learner=variant_learner(v, tuning.configs[k]).as_dict(),
+            truth_dir=str(truth_dir),
+            truth=cell_spec(tc),
+            variant=v,
+        )
+        for v in cfg.variants
+        for tc in truth_cells
+        for k in VARIANT_KERNELS
+        if k in cfg.kernels
+        for b in cfg.budgets
+    ]
+    every = run_sweep(cells, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
+    rows = [r for r in every if "variant" not in r]
     rows.sort(key=lambda r: (KERNEL_NAMES.index(r["kernel"]), int(r["max_bv"]), int(r["seed"])))
+    variant_rows = [r for r in every if "variant" in r]
+    variant_rows.sort(
+        key=lambda r: (
+            list(VARIANTS).index(r["variant"]),
+            KERNEL_NAMES.index(r["kernel"]),
+            int(r["max_bv"]),
+            int(r["seed"]),
+        )
+    )
     write_csv(out / "fig3.csv", [r for r in rows if r["kernel"] in PAPER_KERNELS], FIG3_COLUMNS)
     write_csv(out / "fig3_all.csv", rows, FIG3_COLUMNS)
+    if variant_rows:
+        write_csv(out / "fig3_variants.csv", variant_rows, VARIANT_COLUMNS)
     save_figure(plot_budget_curves(rows, reference="mc"), out / "fig3.png")
     save_figure(plot_budget_curves(rows, posterior="refit"), out / "fig3_refit.png")
     save_figure(plot_budget_curves(rows, reference="td"), out / "fig3_td.png")
@@ -170,6 +215,14 @@ def reproduce(
             graph_rollouts, tuning.configs["nearest"], cfg.graph_eps, cfg.graph_max_bv
         )
         write_csv(out / "fig1.csv", [{"eps": g.eps, **g.stats} for g in graphs])
+        edge_counts = edge_counts_by_eps(
+            graph_rollouts,
+            tuning.configs["nearest"],
+            cfg.graph_eps,
+            cfg.edge_count_eps,
+            cfg.graph_max_bv,
+        )
+        write_csv(out / "fig1_eps.csv", edge_counts, EDGE_COUNT_COLUMNS)
         save_figure(plot_graphs(graphs), out / "fig1.png")
 
         map_rollouts = collect_rollouts(
@@ -212,7 +265,9 @@ def reproduce(
         config=cfg.as_dict(),
         tuning=tuning.as_dict(),
         rows=rows,
+        variant_rows=variant_rows,
         graphs=graphs,
+        edge_counts=edge_counts,
         maps=maps,
         wall_seconds=wall,
         version=geoq.__version__,

@@ -460,6 +460,7 @@ class SparseOnlineGP:
             self.max_bv, bv, self._mu, S, self._R, self._alpha, self._mdiag,
         )  # fmt: skip
         work, T, counters = self._work, self._T, self._counters
+        repair = self._novelty_repair()
         try:
             for x, yt in zip(X, y.tolist(), strict=True):
                 m = self._m
@@ -469,6 +470,8 @@ class SparseOnlineGP:
                     kxx = scale = variance
                 else:
                     kxx, scale = self._kernel_row(x, m), 1.0
+                if repair is not None:
+                    kxx = repair(kbuf, scale, kxx, m)
                 self._m, added, deleted = online_step_lower(
                     kbuf, scale, kxx, yt, x, *args, m, work, T, counters
                 )
@@ -486,6 +489,15 @@ class SparseOnlineGP:
                     self._resync_q()
         finally:
             mirror_lower(S, self._m)
+
+    def _novelty_repair(self) -> Callable[[FloatArray, float, float, int], float] | None:
+        """Hook of the per-point path: ``(k, scale, k(x, x), m) -> k(x, x)`` used by the step.
+
+        ``None`` here (the step sees the kernel's ``k(x, x)``); a subclass may return the
+        prior variance under which the novelty of ``x`` is measured
+        (:class:`geoq.gp.pd_novelty.PDNoveltyOnlineGP`).
+        """
+        return None
 
     def _kernel_row(self, x: FloatArray, m: int) -> float:
         """``k(x, BV)`` into ``self._kbuf[:m]`` by ``to_basis``; returns ``k(x, x)``."""

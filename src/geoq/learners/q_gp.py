@@ -34,6 +34,7 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_vector
 from geoq.gp import SparseOnlineGP
+from geoq.gp.pd_novelty import PDNoveltyOnlineGP
 from geoq.kernels import GeodesicKernel, Kernel, ResistanceKernel, SquaredExponential
 from geoq.kernels.geodesic import GraphKernel
 from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
@@ -84,6 +85,11 @@ class QGPConfig:
     """Wrap-aware distance on periodic inputs (theta); the paper uses raw angles."""
     temporal_edges: bool = False
     """Also link successive basis vectors of a roll-out in the graph (SPEC §1 item 5)."""
+    pd_novelty: bool = False
+    """Measure the novelty of a new point under the positive-definite (eigenvalue-flip)
+    repair of the augmented Gram (:class:`~geoq.gp.pd_novelty.PDNoveltyOnlineGP`), so an
+    indefinite graph kernel's BV set can grow to the budget; the default treats negative
+    novelty as "not novel" (beyond the paper, which is silent)."""
     standardize: bool = True
     """Centre and scale the targets before the zero-mean GP sees them."""
     refit: RefitMode = "none"
@@ -205,7 +211,8 @@ class GPQFunction:
         else:
             self.y_mean_, self.y_scale_ = 0.0, 1.0
         cfg = self.config
-        gp = SparseOnlineGP(make_kernel(cfg), noise=cfg.noise, max_bv=cfg.max_bv, tol=cfg.tol)
+        gp_class = PDNoveltyOnlineGP if cfg.pd_novelty else SparseOnlineGP
+        gp = gp_class(make_kernel(cfg), noise=cfg.noise, max_bv=cfg.max_bv, tol=cfg.tol)
         seen_X: list[FloatArray] = []
         seen_y: list[FloatArray] = []
         for X, y in zip(Xs, ys, strict=True):

@@ -33,6 +33,8 @@ Heavy imports (numpy, the experiments) happen inside the commands, so that
 from __future__ import annotations
 
 import enum
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -260,6 +262,19 @@ def reproduce(
     typer.echo(f"geoq reproduce: done; results in {out}")
 
 
+@contextmanager
+def _reported(command: str, on_interrupt: str) -> Iterator[None]:
+    """Exit 130 with ``on_interrupt`` on Ctrl-C, exit 1 with one line on any other failure."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        typer.echo(f"geoq {command}: interrupted; {on_interrupt}", err=True)
+        raise typer.Exit(130) from None
+    except Exception as exc:
+        typer.echo(f"geoq {command}: error: {_one_line(exc)}", err=True)
+        raise typer.Exit(1) from exc
+
+
 def _agent_config(config: Path | None) -> dict[str, Any]:
     """GPQConfig overrides from a JSON file, checked up front (usage error if bad)."""
     if config is None:
@@ -323,19 +338,13 @@ def train(
     if out.exists() and not out.is_dir():
         raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
     overrides = _agent_config(config)
-    try:
+    with _reported("train", "nothing was written"):
         from geoq.experiments.control import train as run_train
 
         agent = run_train(
             env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
             **overrides,
         )  # fmt: skip
-    except KeyboardInterrupt:
-        typer.echo("geoq train: interrupted; nothing was written", err=True)
-        raise typer.Exit(130) from None
-    except Exception as exc:
-        typer.echo(f"geoq train: error: {_one_line(exc)}", err=True)
-        raise typer.Exit(1) from exc
     last = agent.episodes[-1] if agent.episodes else None
     tail = f"; last episode return {last.ret:.1f}" if last else ""
     typer.echo(f"geoq train: {agent.num_timesteps} steps, {len(agent.episodes)} episodes{tail}; "
@@ -357,15 +366,12 @@ def evaluate(
     ] = None,
 ) -> None:
     """Evaluate a saved agent: mean return with its 95% interval, and the success rate."""
-    try:
+    with _reported("evaluate", "nothing was written"):
         from geoq.agents import GPQAgent
         from geoq.experiments.control import evaluate_agent
 
         agent = GPQAgent.load(agent_path, env=env)
         result = evaluate_agent(agent, env, episodes, seed)
-    except Exception as exc:
-        typer.echo(f"geoq evaluate: error: {_one_line(exc)}", err=True)
-        raise typer.Exit(1) from exc
     typer.echo(result.summary())
 
 
@@ -436,22 +442,15 @@ def bench_control(
             )
     base = _agent_config(config)
     configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
-    try:
+    with _reported("bench-control", "finished cells are kept; rerun to resume"):
         from geoq.experiments.control import run_control_benchmark
 
         run_control_benchmark(
             out, env_id=env, kernels=[k.value for k in (kernels or [KernelChoice.euclidean])],
             seeds=seeds, timesteps=timesteps, eval_every=eval_every,
             eval_episodes=eval_episodes, configs=configs, baselines=baselines or [],
-            jobs=jobs, backend=backend.value,
-            scheduler=scheduler, progress=progress,
+            jobs=jobs, backend=backend.value, scheduler=scheduler, progress=progress,
         )  # fmt: skip
-    except KeyboardInterrupt:
-        typer.echo("geoq bench-control: interrupted; finished cells are kept", err=True)
-        raise typer.Exit(130) from None
-    except Exception as exc:
-        typer.echo(f"geoq bench-control: error: {_one_line(exc)}", err=True)
-        raise typer.Exit(1) from exc
     typer.echo(f"geoq bench-control: done; {out / 'CONTROL.md'}")
 
 

@@ -14,7 +14,8 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -199,31 +200,27 @@ class ControlCell:
         return self.kernel + (f"[{extra}]" if extra else "")
 
 
-def control_cell(cell: ControlCell) -> dict[str, Any]:
-    """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
+def learn_with_checkpoints(
+    cell: ControlCell, learn: Callable[[int], object], actor: Actor
+) -> dict[str, Any]:
+    """``learn(n)`` in chunks of ``cell.eval_every`` steps, evaluating ``actor`` after each.
 
-    ``cell.kernel`` may also name a baseline (``"sac"``,
-    :mod:`geoq.experiments.sac_baseline`), trained and evaluated the same way.
-
-    Returns a row with the checkpoints, the evaluation's mean return and
-    success rate at each, the training curve and the wall time of learning.
+    Returns the part of a benchmark row every learner shares: label, kernel,
+    seed, checkpoints, mean evaluation return and success rate at each, the
+    wall time spent in ``learn`` and its cost per step.
     """
-    import time
-
-    from geoq.experiments.sac_baseline import BASELINES, sac_cell
-
-    if cell.kernel in BASELINES:
-        return sac_cell(cell)
-    agent = GPQAgent(cell.env_id, kernel=cell.kernel, seed=cell.seed, **dict(cell.config))  # type: ignore[arg-type]
-    checkpoints, eval_returns, eval_success = [], [], []
-    learn_seconds = 0.0
-    while agent.num_timesteps < cell.timesteps:
-        step = min(cell.eval_every, cell.timesteps - agent.num_timesteps)
+    checkpoints: list[int] = []
+    eval_returns: list[float] = []
+    eval_success: list[float] = []
+    learn_seconds, done = 0.0, 0
+    while done < cell.timesteps:
+        step = min(cell.eval_every, cell.timesteps - done)
         t0 = time.perf_counter()
-        agent.learn(step)
+        learn(step)
         learn_seconds += time.perf_counter() - t0
-        ev = evaluate_agent(agent, cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed)
-        checkpoints.append(agent.num_timesteps)
+        done += step
+        ev = evaluate_agent(actor, cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed)
+        checkpoints.append(done)
         eval_returns.append(float(np.mean(ev.returns)))
         eval_success.append(ev.success_rate)
     return {
@@ -233,12 +230,30 @@ def control_cell(cell: ControlCell) -> dict[str, Any]:
         "checkpoints": checkpoints,
         "eval_return": eval_returns,
         "eval_success": eval_success,
-        "train_timesteps": [e.timesteps for e in agent.episodes],
-        "train_return": [e.ret for e in agent.episodes],
         "learn_seconds": learn_seconds,
-        "ms_per_step": 1e3 * learn_seconds / max(agent.num_timesteps, 1),
-        "n_bv": agent.gp.n_bv,
+        "ms_per_step": 1e3 * learn_seconds / max(done, 1),
     }
+
+
+def control_cell(cell: ControlCell) -> dict[str, Any]:
+    """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
+
+    ``cell.kernel`` may also name a baseline (``"sac"``,
+    :mod:`geoq.experiments.sac_baseline`), trained and evaluated the same way.
+
+    Returns a row with the checkpoints, the evaluation's mean return and
+    success rate at each, the training curve and the wall time of learning.
+    """
+    from geoq.experiments.sac_baseline import BASELINES, sac_cell
+
+    if cell.kernel in BASELINES:
+        return sac_cell(cell)
+    agent = GPQAgent(cell.env_id, kernel=cell.kernel, seed=cell.seed, **dict(cell.config))  # type: ignore[arg-type]
+    row = learn_with_checkpoints(cell, agent.learn, agent)
+    row["train_timesteps"] = [e.timesteps for e in agent.episodes]
+    row["train_return"] = [e.ret for e in agent.episodes]
+    row["n_bv"] = agent.gp.n_bv
+    return row
 
 
 def steps_to_success(row: Mapping[str, Any], threshold: float = 0.9) -> float:

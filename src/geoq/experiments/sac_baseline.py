@@ -10,7 +10,6 @@ one torch thread, is evaluated exactly as the GP agent is
 
 from __future__ import annotations
 
-import time
 from typing import TYPE_CHECKING, Any
 
 import gymnasium
@@ -46,35 +45,14 @@ def sac_cell(cell: ControlCell) -> dict[str, Any]:
             "the SAC baseline needs stable-baselines3: pip install 'geoq[baselines]' "
             "(it pulls torch, several GB)"
         ) from exc
-    from geoq.experiments.control import evaluate_agent
+    from geoq.experiments.control import learn_with_checkpoints
 
     torch.set_num_threads(1)
     env = gymnasium.make(cell.env_id)
     model = SAC("MlpPolicy", env, seed=cell.seed, verbose=0, device="cpu", **dict(cell.config))
-    checkpoints, eval_returns, eval_success = [], [], []
-    learn_seconds, done = 0.0, 0
-    while done < cell.timesteps:
-        step = min(cell.eval_every, cell.timesteps - done)
-        t0 = time.perf_counter()
-        model.learn(total_timesteps=step, reset_num_timesteps=False)
-        learn_seconds += time.perf_counter() - t0
-        done += step
-        ev = evaluate_agent(
-            _Evaluated(model, cell.env_id), cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed
-        )
-        checkpoints.append(done)
-        eval_returns.append(float(np.mean(ev.returns)))
-        eval_success.append(ev.success_rate)
-    return {
-        "label": cell.label,
-        "kernel": cell.kernel,
-        "seed": cell.seed,
-        "checkpoints": checkpoints,
-        "eval_return": eval_returns,
-        "eval_success": eval_success,
-        "train_timesteps": [],
-        "train_return": [],
-        "learn_seconds": learn_seconds,
-        "ms_per_step": 1e3 * learn_seconds / max(done, 1),
-        "n_bv": 0,
-    }
+    row = learn_with_checkpoints(
+        cell,
+        lambda n: model.learn(total_timesteps=n, reset_num_timesteps=False),
+        _Evaluated(model, cell.env_id),
+    )
+    return row | {"train_timesteps": [], "train_return": [], "n_bv": 0}

@@ -58,6 +58,19 @@ import numpy as np
 from numba import njit
 
 from geoq._typing import FloatArray, IntArray
+from geoq.gp.diagnostics import (
+    _ADDED,
+    _DELETED,
+    _NEGNOV,
+    _NOISEFLOOR,
+    _NOVCLIP,
+    _PROJECTED,
+    _SCORECLIP,
+    _SEEN,
+    _VARCLIP,
+    COUNTER_NAMES,
+)
+from geoq.gp.numerics import VAR_ROUNDING
 
 __all__ = [
     "COUNTER_NAMES",
@@ -68,24 +81,6 @@ __all__ = [
     "se_kernel_vector",
     "se_stream",
 ]
-
-#: Indices into the int64 counter array shared by Python and numba.
-COUNTER_NAMES: tuple[str, ...] = (
-    "n_seen",
-    "n_added",
-    "n_projected",
-    "n_deleted",
-    "negative_novelty",
-    "variance_clipped",
-    "novelty_clipped",
-    "score_clipped",
-    "noise_floored",
-)
-_SEEN, _ADDED, _PROJECTED, _DELETED, _NEGNOV, _VARCLIP, _NOVCLIP, _SCORECLIP, _NOISEFLOOR = range(9)
-
-#: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
-#: it is clipped to 0 silently; below that it is clipped *and* counted.
-_VAR_ROUNDING = 1e-9
 
 #: Whitened posterior variance (``S <= I``) below which a coordinate counts as pinned
 #: by the data: the deletion then drops it instead of conditioning on it (counted as
@@ -521,7 +516,7 @@ def _step(  # pragma: no cover - compiled
     gamma = kxx - vv
     if gamma < 0.0:
         counters[_NEGNOV] += 1
-        if gamma < -_VAR_ROUNDING * kxx:
+        if gamma < -VAR_ROUNDING * kxx:
             # Indefinite kernel: k is not a covariance column of K_BV and |v| can be
             # huge (seen: 1e3), so the update would amplify rounding until S is no
             # longer PSD and blows up. Repair: scale v onto |v|^2 = k(x, x) (gamma = 0),
@@ -537,7 +532,7 @@ def _step(  # pragma: no cover - compiled
     if vsv < 0.0:
         vsv = 0.0
     s2 = gamma + vsv  # var of the latent f(x) = k(x,x) + k^T C k
-    if s2 < -_VAR_ROUNDING * kxx:
+    if s2 < -VAR_ROUNDING * kxx:
         counters[_VARCLIP] += 1
     if s2 < 0.0:
         s2 = 0.0

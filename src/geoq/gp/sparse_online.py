@@ -66,8 +66,10 @@ from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
+from geoq.gp._nb_delete import refresh_scores
+from geoq.gp._nb_linalg import mirror_lower
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
-from geoq.gp._step import N_WORK, mirror_lower, online_step_lower, refresh_scores, se_stream
+from geoq.gp._step import N_WORK, online_step_lower, se_stream
 from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
 from geoq.gp.numerics import (
     CONFIG,
@@ -388,7 +390,7 @@ class SparseOnlineGP:
     def _refresh_scores(self, record_drift: bool = True) -> None:
         """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.
 
-        Compiled and single-threaded (:func:`~geoq.gp._step.refresh_scores`): for the
+        Compiled and single-threaded (:func:`~geoq.gp._nb_delete.refresh_scores`): for the
         small matrices here a threaded BLAS call was seen to cost milliseconds on a
         busy machine.
         """

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoq.graph._apsp import rows_equal, squares_over
 from geoq.kernels import GeodesicKernel
+from geoq.kernels._geodesic_row import rows_equal, squares_over
 from geoq.kernels.geodesic import NEGLIGIBLE_WEIGHT, weighted_paths
 
 

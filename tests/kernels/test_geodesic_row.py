@@ -7,13 +7,13 @@ import pytest
 
 import geoq.kernels.geodesic as geodesic
 from geoq.gp import SparseOnlineGP
-from geoq.graph._apsp import (
+from geoq.kernels import GeodesicKernel
+from geoq.kernels._geodesic_row import (
     EINSUM_ROW_MAX,
     _pairwise_sum,
     einsum_row_dot,
     numpy_summation_reproduced,
 )
-from geoq.kernels import GeodesicKernel
 from geoq.kernels.geodesic import GraphKernel
 
 #: The fused row copies numpy's summation order; another numpy build disables it.

@@ -53,6 +53,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from geoq._geometry import wrap
 from geoq._typing import FloatArray, IntArray
 from geoq.gp._nb_delete import delete_cholesky, delete_whitened
 from geoq.gp._nb_linalg import (
@@ -347,10 +348,7 @@ def se_kernel_vector(  # pragma: no cover - compiled
     for j in range(m):
         r2 = 0.0
         for c in range(d):
-            diff = x[c] - BV[j, c]
-            p = period[c]
-            if p > 0.0:
-                diff -= p * np.round(diff / p)
+            diff = wrap(x[c] - BV[j, c], period[c])
             diff *= inv_ls[c]
             r2 += diff * diff
         out[j] = variance * np.exp(-0.5 * r2)

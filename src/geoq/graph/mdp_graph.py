@@ -48,12 +48,18 @@ cheaper than rebuilding a tree after every change (measured in
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 import scipy.sparse
 from scipy.spatial import cKDTree
 
+from geoq._geometry import (
+    as_period_vector,
+    squared_distances_row,
+    wrap_difference,
+    wrapped_squared_distances,
+)
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
 from geoq.graph._apsp import (
@@ -62,12 +68,7 @@ from geoq.graph._apsp import (
     delete_node_paths,
     drop_index,
     insert_edge,
-    squared_distances_row,
-    wrapped_squared_distances,
 )
-
-if TYPE_CHECKING:
-    from geoq.kernels.stationary import Euclidean
 
 __all__ = ["EdgeWeight", "MDPGraph"]
 
@@ -114,15 +115,10 @@ class MDPGraph:
             raise ValueError(f"eps must lie in [0, 1] (eq. 2), got {eps!r}")
         if edge_weight not in ("squared", "euclidean"):
             raise ValueError(f"edge_weight must be 'squared' or 'euclidean', got {edge_weight!r}")
-        # Imported here: geoq.kernels imports this module (the geodesic kernel), so a
-        # module-level import would be circular. Same period convention as the SE kernel.
-        from geoq.kernels.stationary import Euclidean, as_period_vector
-
         self.eps = eps
         self.edge_weight: EdgeWeight = edge_weight
         self.period = as_period_vector(period, None)
         self.temporal_edges = bool(temporal_edges)
-        self._metric: Euclidean = Euclidean(scale=1.0, period=self.period)
         self._zero_period: FloatArray | None = None
         self._dim: int | None = None if self.period is None else int(self.period.shape[0])
         self._cap = max(int(capacity), 1)
@@ -263,7 +259,7 @@ class MDPGraph:
             r2t = self.squared_distances_to_nodes(X[tie])
             idx[tie] = np.argmin(r2t, axis=1)
         nodes = self._X[:n]
-        diff = self._metric._scaled_difference(X - nodes[idx])
+        diff = wrap_difference(X - nodes[idx], self.period)
         return idx, np.einsum("nd,nd->n", diff, diff)
 
     def _tree_coords(self, X: FloatArray) -> FloatArray:

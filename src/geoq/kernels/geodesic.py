@@ -66,7 +66,8 @@ import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, check_positive
-from geoq.graph._apsp import (
+from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels._geodesic_row import (
     EINSUM_ROW_MAX,
     interpolated_row_exponent,
     interpolated_row_prepare,
@@ -76,7 +77,6 @@ from geoq.graph._apsp import (
     rows_equal,
     squares_over,
 )
-from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
 from geoq.kernels.base import Distance, GaussianOfDistance, Kernel, RowExponent
 
 __all__ = [

@@ -3,15 +3,17 @@
 The GP streams one point at a time; these functions do, in one call each, what the
 numpy expressions of :mod:`geoq.kernels.geodesic` do for a single row, with the same
 floating-point operations in the same order (only IEEE +, -, *, /, sqrt and
-comparisons, which round identically here and in numpy). ``exp``, the eq. 5
-product ``W @ P`` (BLAS) and the attach cost (``einsum``) stay numpy calls in the
-caller. Also the eq. 3 square ``SP^2 / sigma_sp`` (:func:`squares_over`) and the
-node-identity test (:func:`rows_equal`).
+comparisons, which round identically here and in numpy). The two sums of eq. 5
+(the normalising weight sum and the attach cost) are defined here,
+:func:`row_sum` and :func:`row_dot`, and the numpy path calls them too
+(:func:`row_sums`, :func:`row_dots`): both paths give the same bits by
+construction, whatever order numpy sums in. ``exp`` and the eq. 5 product
+``W @ P`` (BLAS) stay numpy calls in the caller. Also the eq. 3 square
+``SP^2 / sigma_sp`` (:func:`squares_over`) and the node-identity test
+(:func:`rows_equal`).
 """
 
 from __future__ import annotations
-
-import functools
 
 import numba
 import numpy as np
@@ -20,13 +22,14 @@ from geoq._geometry import wrapped_r2
 from geoq._typing import FloatArray
 
 __all__ = [
-    "EINSUM_ROW_MAX",
-    "einsum_row_dot",
     "interpolated_row_exponent",
     "interpolated_row_prepare",
     "interpolated_row_weights",
     "nearest_row_exponent",
-    "numpy_summation_reproduced",
+    "row_dot",
+    "row_dots",
+    "row_sum",
+    "row_sums",
     "rows_equal",
     "squares_over",
 ]
@@ -144,153 +147,39 @@ def interpolated_row_prepare(
 
 
 @numba.njit(cache=True, nogil=True)
-def _block_sum(a: FloatArray, lo: int, n: int) -> float:
-    """numpy's sum of ``a[lo:lo + n]`` for ``n <= 128``: eight accumulators (sequential below 8)."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    r0 = a[lo]
-    r1 = a[lo + 1]
-    r2 = a[lo + 2]
-    r3 = a[lo + 3]
-    r4 = a[lo + 4]
-    r5 = a[lo + 5]
-    r6 = a[lo + 6]
-    r7 = a[lo + 7]
-    i = lo + 8
-    end = lo + n - (n % 8)
-    while i < end:
-        r0 += a[i]
-        r1 += a[i + 1]
-        r2 += a[i + 2]
-        r3 += a[i + 3]
-        r4 += a[i + 4]
-        r5 += a[i + 5]
-        r6 += a[i + 6]
-        r7 += a[i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < lo + n:
-        res += a[i]
-        i += 1
-    return res
+def row_sum(a: FloatArray, n: int) -> float:  # pragma: no cover - compiled
+    """``sum_{k<n} a[k]``, left to right: the one definition of an eq. 5 weight sum."""
+    acc = 0.0
+    for k in range(n):
+        acc += a[k]
+    return acc
 
 
 @numba.njit(cache=True, nogil=True)
-def _pairwise_sum(a: FloatArray, lo: int, n: int) -> float:
-    """``a[lo:lo + n].sum()`` exactly as numpy sums a contiguous float64 row.
-
-    numpy's pairwise summation: blocks of at most 128 by :func:`_block_sum`, larger
-    ranges split at ``n2 = n // 2`` rounded down to a multiple of 8 and the halves
-    added. The recursion is unrolled onto an explicit stack (a self-recursive
-    function loaded from numba's cache was seen to crash).
-    """
-    if n <= 128:
-        return _block_sum(a, lo, n)
-    los = np.empty(64, dtype=np.int64)
-    ns = np.empty(64, dtype=np.int64)
-    stage = np.empty(64, dtype=np.int64)  # 0 = new, 1 = left half pending, 2 = right pending
-    left = np.empty(64)
-    depth = 0
-    los[0] = lo
-    ns[0] = n
-    stage[0] = 0
-    while True:
-        c = ns[depth]
-        if c > 128:  # split: descend into the left half
-            h = c // 2
-            h -= h % 8
-            stage[depth] = 1
-            los[depth + 1] = los[depth]
-            ns[depth + 1] = h
-            stage[depth + 1] = 0
-            depth += 1
-            continue
-        res = _block_sum(a, los[depth], c)
-        while True:  # climb until a node still needs its right half
-            depth -= 1
-            if depth < 0:
-                return res
-            if stage[depth] == 1:
-                left[depth] = res
-                stage[depth] = 2
-                h = ns[depth] // 2
-                h -= h % 8
-                los[depth + 1] = los[depth] + h
-                ns[depth + 1] = ns[depth] - h
-                stage[depth + 1] = 0
-                depth += 1
-                break
-            res = left[depth] + res
-
-
-#: :func:`einsum_row_dot` reproduces numpy's einsum for rows up to this length (numpy's
-#: iterator buffer: longer rows are summed in chunks).
-EINSUM_ROW_MAX = 8192
+def row_dot(a: FloatArray, b: FloatArray, n: int) -> float:  # pragma: no cover - compiled
+    """``sum_{k<n} a[k] b[k]``, left to right: the one definition of the eq. 5 attach cost."""
+    acc = 0.0
+    for k in range(n):
+        acc += a[k] * b[k]
+    return acc
 
 
 @numba.njit(cache=True, nogil=True)
-def einsum_row_dot(a: FloatArray, b: FloatArray, n: int) -> float:
-    """``np.einsum("nk,nk->n", a[None, :n], b[None, :n])[0]`` with numpy's summation order.
-
-    numpy's contiguous sum-of-products kernel on two-lane vectors: lanes ``l = 0, 1``
-    accumulate, per block of eight, ``a0 b0 + (a1 b1 + (a2 b2 + (a3 b3 + acc)))``
-    (unfused), then pairs, then ``acc_0 + acc_1``. Checked against ``np.einsum`` by
-    ``tests/kernels/test_geodesic_row.py``; ``n <= EINSUM_ROW_MAX``.
-    """
-    acc0 = 0.0
-    acc1 = 0.0
-    i = 0
-    while n - i >= 8:
-        p6 = a[i + 6] * b[i + 6]
-        p7 = a[i + 7] * b[i + 7]
-        acc0 = p6 + acc0
-        acc1 = p7 + acc1
-        p4 = a[i + 4] * b[i + 4]
-        p5 = a[i + 5] * b[i + 5]
-        acc0 = p4 + acc0
-        acc1 = p5 + acc1
-        p2 = a[i + 2] * b[i + 2]
-        p3 = a[i + 3] * b[i + 3]
-        acc0 = p2 + acc0
-        acc1 = p3 + acc1
-        p0 = a[i] * b[i]
-        p1 = a[i + 1] * b[i + 1]
-        acc0 = p0 + acc0
-        acc1 = p1 + acc1
-        i += 8
-    while i < n:
-        acc0 = a[i] * b[i] + acc0
-        if i + 1 < n:
-            acc1 = a[i + 1] * b[i + 1] + acc1
-        else:
-            acc1 = 0.0 * 0.0 + acc1
-        i += 2
-    return 0.0 + (acc0 + acc1)
+def row_sums(A: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """:func:`row_sum` of every row of ``A`` [N, n] -> [N] (the batch path's sums)."""
+    out = np.empty(A.shape[0])
+    for i in range(A.shape[0]):
+        out[i] = row_sum(A[i], A.shape[1])
+    return out
 
 
-@functools.cache
-def numpy_summation_reproduced() -> bool:
-    """Whether :func:`_pairwise_sum` and :func:`einsum_row_dot` give numpy's bits here.
-
-    They copy numpy's summation order, an implementation detail of the installed
-    numpy build; the fused per-point geodesic row that relies on them is used only
-    when this check (lengths 1-300 and a few long rows, several offsets) passes, so
-    a numpy with another order costs speed, never reproducibility.
-    """
-    rng = np.random.default_rng(20121)
-    buf = rng.random(EINSUM_ROW_MAX + 8) * 10.0 ** rng.integers(-6, 6, EINSUM_ROW_MAX + 8)
-    other = rng.standard_normal(EINSUM_ROW_MAX + 8)
-    for n in (*range(1, 301), 511, 1029, 4097, EINSUM_ROW_MAX):
-        for off in (0, 1, 3):
-            a, b = buf[off : off + n], other[off : off + n]
-            if _pairwise_sum(a, 0, n) != a[None, :].sum(axis=1, keepdims=True)[0, 0]:
-                return False
-            if einsum_row_dot(a, b, n) != np.einsum("nk,nk->n", a[None, :], b[None, :])[0]:
-                return False
-    return True
+@numba.njit(cache=True, nogil=True)
+def row_dots(A: FloatArray, B: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """:func:`row_dot` of every row pair of ``A``, ``B`` [N, n] -> [N]."""
+    out = np.empty(A.shape[0])
+    for i in range(A.shape[0]):
+        out[i] = row_dot(A[i], B[i], A.shape[1])
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -308,24 +197,24 @@ def interpolated_row_weights(
     ``log_rel < -negligible_log`` set to 0, then divided by their sum if ``normalize``.
 
     Returns the attach cost ``sum_k W[0, k] w(r2[k])`` (``w`` = ``r2`` or ``sqrt(r2)``)
-    summed as ``np.einsum`` does, or 0 without ``attach``; ``n <= EINSUM_ROW_MAX``.
+    by :func:`row_dot`, or 0 without ``attach``.
     """
     w = W[0]
     for j in range(n):
         if log_rel[j] < -negligible_log:
             w[j] = 0.0
     if normalize:
-        s = _pairwise_sum(w, 0, n)
+        s = row_sum(w, n)
         for j in range(n):
             w[j] = w[j] / s
     if not attach:
         return 0.0
     if squared:
-        return einsum_row_dot(w, r2, n)
+        return row_dot(w, r2, n)
     c = np.empty(n)
     for j in range(n):
         c[j] = np.sqrt(r2[j])
-    return einsum_row_dot(w, c, n)
+    return row_dot(w, c, n)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -68,12 +68,12 @@ from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, check_positive
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
 from geoq.kernels._geodesic_row import (
-    EINSUM_ROW_MAX,
     interpolated_row_exponent,
     interpolated_row_prepare,
     interpolated_row_weights,
     nearest_row_exponent,
-    numpy_summation_reproduced,
+    row_dots,
+    row_sums,
     rows_equal,
     squares_over,
 )
@@ -338,11 +338,7 @@ class GraphDistance(BasisGraphDistance):
             if on_node.size:
                 W[on_node] = 0.0
                 W[on_node, np.argmin(r2[on_node], axis=1)] = 1.0
-        cost = (
-            np.einsum("nk,nk->n", W, self.graph.weight_of(r2))
-            if self.attach
-            else np.zeros(r2.shape[0])
-        )
+        cost = row_dots(W, self.graph.weight_of(r2)) if self.attach else np.zeros(r2.shape[0])
         return W, cost
 
     def _weights_off_nodes(self, r2: FloatArray, argmin: int) -> FloatArray:
@@ -359,7 +355,7 @@ class GraphDistance(BasisGraphDistance):
         W = np.exp(log_rel) if self.normalize else np.exp(-z)
         W[log_rel < -_NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
         if self.normalize:
-            W /= W.sum(axis=1, keepdims=True)
+            W /= row_sums(W)[:, None]
         return W
 
     def shortest_path_to_nodes(self, X: FloatArray) -> FloatArray:
@@ -382,7 +378,7 @@ class GraphDistance(BasisGraphDistance):
         Pf, Ui, unreachable = self._split()
         D = _weighted_paths(Wx, Pf, Ui, Wy, unreachable)
         if self.attach:  # sum_{l,m} wx_l wy_m (cx_l + cy_m) = cx sum(wy) + sum(wx) cy
-            D += cx[:, None] * Wy.sum(axis=1)[None, :] + Wx.sum(axis=1)[:, None] * cy[None, :]
+            D += cx[:, None] * row_sums(Wy)[None, :] + row_sums(Wx)[:, None] * cy[None, :]
         if Y is X:
             D = 0.5 * (D + D.T)
         return _zero_identical(g, D, X, Y)
@@ -392,15 +388,15 @@ class GraphDistance(BasisGraphDistance):
 
         ``basis`` is the GP's BV buffer (``[>= m, d]``). The same floating-point
         operations as :meth:`squared_to_basis` on ``x[None, :]``, fused into compiled
-        calls around the numpy ``exp`` (eq. 5 weights), ``W @ P`` and ``einsum``
-        (attach cost); the result is bit-identical. Returns a view of scratch space
-        (valid until the next call), or None where the general path must be used
-        (fewer than two nodes, basis out of sync, another dimension).
+        calls around the numpy ``exp`` (eq. 5 weights) and ``W @ P``; both paths sum
+        by :mod:`geoq.kernels._geodesic_row`, so the result is bit-identical. Returns a
+        view of scratch space (valid until the next call), or None where the general
+        path must be used (fewer than two nodes, basis out of sync, another dimension).
         """
         g = self.graph
         n = g._n
         d = x.shape[0]
-        if n < 2 or n != m or g._dim != d or n > EINSUM_ROW_MAX:
+        if n < 2 or n != m or g._dim != d:
             return None
         rows = self._row_views
         if rows[0].shape[0] < n:
@@ -424,7 +420,7 @@ class GraphDistance(BasisGraphDistance):
             W = np.zeros((1, n))
             W[0, -2 - a] = 1.0
             wr = g.weight_of(scr[0:1, :n])
-            cost = float(np.einsum("nk,nk->n", W, wr)[0]) if self.attach else 0.0
+            cost = float(row_dots(W, wr)[0]) if self.attach else 0.0
         else:
             W = np.exp(scr[2:3, :n])
             cost = interpolated_row_weights(
@@ -523,7 +519,6 @@ class GraphKernel(GaussianOfDistance):
             cls.to_basis is not GaussianOfDistance.to_basis
             or cls._diag is not GaussianOfDistance._diag
             or type(self.distance) is not GraphDistance
-            or not numpy_summation_reproduced()
         ):
             return None
         return self.distance.row_exponent

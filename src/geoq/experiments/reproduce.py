@@ -34,13 +34,13 @@ from geoq.experiments.config import ReproConfig, config_for_scale
 from geoq.experiments.fig1 import build_graphs
 from geoq.experiments.fig2 import value_maps
 from geoq.experiments.fig3 import FIG3_COLUMNS, BudgetCell, TruthCell, budget_cell, truth_cell
+from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.experiments.report import render_report
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_spec, run_sweep
 from geoq.experiments.tuning import TUNING_COLUMNS, TuningResult, tune
 from geoq.gp import NumericalWarning
 from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
-from geoq.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy
 from geoq.rollouts import collect_rollouts
 

@@ -1,7 +1,7 @@
 """Oracle, property and stability tests of the sparse online GP with a budget.
 
 Oracles: the plain-numpy :class:`~tests.gp.reference.ReferenceOnlineGP` (the
-Csató–Opper step of SPEC §1 line by line, deletions included) and the textbook
+Csató–Opper step line by line, deletions included) and the textbook
 DTC posterior :func:`~tests.gp.reference.dtc_posterior`.
 """
 

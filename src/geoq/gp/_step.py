@@ -31,9 +31,10 @@ matvec the deletion needs; the deletion itself is one pass of Givens rotations
 over the rows below the deleted one and one pass of conditioning and compaction.
 
 Equation references are to Csató & Opper, "Sparse on-line Gaussian processes",
-Neural Computation 14 (2002) -- "CO" -- and the corrected Aston technical report
-NCRG/2001/014 -- "TR" (section 3, eqs. 3.9-3.13 for the update, 3.17-3.19 for the
-projection, 3.23-3.26 for the deletion).
+Neural Computation 14 (2002) -- ``CO02 eq. N`` -- and the corrected Aston technical
+report NCRG/2001/014 -- ``TR eq. 3.N`` (section 3: eqs. 3.9-3.13 for the update,
+3.17-3.19 for the projection, 3.23-3.26 for the deletion); ``JC12 eq. N`` is the
+paper geoq reproduces. ``docs/equations.md`` maps each equation to its function.
 
 Sign convention (see :mod:`geoq.gp.sparse_online`): ``mean = k^T alpha``,
 ``var = k(x, x) + k^T C k``; ``C`` is negative (semi-)definite for a PD kernel.
@@ -151,7 +152,7 @@ def _step(  # pragma: no cover - compiled
         noise = noise_floor * kxx
         counters[_NOISEFLOOR] += 1
 
-    # Predictive moments (CO eq. 6 / TR eq. 3.5) in whitened form: v = L^{-1} k,
+    # Predictive moments (CO02 eq. 6 / TR eq. 3.5) in whitened form: v = L^{-1} k,
     # mean = v^T mu, var = gamma + v^T S v with the novelty (TR eq. 3.16)
     # gamma = k(x,x) - k^T Q k = k(x,x) - |v|^2, the Cholesky pivot x would get.
     forward(R, k, 0, m, v)

@@ -10,12 +10,13 @@ The posterior process is kept on a basis-vector (BV) set ``x_1 ... x_m`` as::
 with ``k_x = [k(x_1, x), ..., k(x_m, x)]`` and ``Q = K_BV^{-1}`` [m, m]. With every
 point kept (``max_bv >= N``, ``tol = 0``) this is the exact GP:
 ``alpha = (K + sigma0^2 I)^{-1} y`` and ``C = -(K + sigma0^2 I)^{-1}`` (note the minus:
-Csató & Opper's convention, the paper's eq. 1 writes ``- k C k`` with ``C`` positive).
+Csató & Opper's convention, JC12 eq. 1 writes ``- k C k`` with ``C`` positive).
 
 The update for one observation (``q``, ``r``, ``gamma``, the projection with
 ``eta = 1/(1 + gamma r)``, the full update and the KL-optimal deletion with score
-``alpha_i^2 / (Q_ii + C_ii)``) is SPEC §1; the compiled implementation, with the
-equation numbers of Csató & Opper (2002) and the Aston report NCRG/2001/014, is
+``alpha_i^2 / (Q_ii + C_ii)``) is listed equation by equation, with the function that
+computes each, in ``docs/equations.md``; the compiled implementation, citing
+Csató & Opper (2002) as ``CO02`` and the Aston report NCRG/2001/014 as ``TR``, is
 :mod:`geoq.gp._step`. The projected update with ``eta`` is the exact Bayes update
 for the projected likelihood ``y ~ N(e_hat^T f_BV, sigma0^2)``, so on a fixed BV set
 the online pass is the projected-process (DTC) posterior; :meth:`SparseOnlineGP.refit`

@@ -473,7 +473,7 @@ def drop_index(M: FloatArray, n: int, v: int, fill: float) -> None:
         last[j] = fill
 
 
-# -- adding a node (eq. 2) ---------------------------------------------------------------
+# -- adding a node (JC12 eq. 2) ---------------------------------------------------------------
 
 
 @numba.njit(cache=True, nogil=True)
@@ -491,7 +491,7 @@ def add_linked_node(
     nbr: IntArray,
     wn: FloatArray,
 ) -> int:
-    """Append node ``n`` linked to every ``j`` with ``e[j] = exp(-r2[j]) > eps`` (eq. 2)
+    """Append node ``n`` linked to every ``j`` with ``e[j] = exp(-r2[j]) > eps`` (JC12 eq. 2)
     and to ``prev`` (if ``>= 0``), by weights ``r2`` (``squared``) or ``sqrt(r2)``;
     :func:`add_node_paths` on the neighbours in increasing order. ``nbr``, ``wn``
     [>= n] are scratch. Returns the rows touched by the relaxation.

@@ -1,14 +1,14 @@
-"""Compiled per-point rows of the geodesic kernel: JC12 eq. 4 and eq. 5 for one input.
+"""Compiled per-point rows of the geodesic kernel: JC12 eq. 4 and JC12 eq. 5 for one input.
 
 The GP streams one point at a time; these functions do, in one call each, what the
 numpy expressions of :mod:`geoq.kernels.geodesic` do for a single row, with the same
 floating-point operations in the same order (only IEEE +, -, *, /, sqrt and
-comparisons, which round identically here and in numpy). The two sums of eq. 5
+comparisons, which round identically here and in numpy). The two sums of JC12 eq. 5
 (the normalising weight sum and the attach cost) are defined here,
 :func:`row_sum` and :func:`row_dot`, and the numpy path calls them too
 (:func:`row_sums`, :func:`row_dots`): both paths give the same bits by
-construction, whatever order numpy sums in. ``exp`` and the eq. 5 product
-``W @ P`` (BLAS) stay numpy calls in the caller. Also the eq. 3 square
+construction, whatever order numpy sums in. ``exp`` and the JC12 eq. 5 product
+``W @ P`` (BLAS) stay numpy calls in the caller. Also the JC12 eq. 3 square
 ``SP^2 / sigma_sp`` (:func:`squares_over`) and the node-identity test
 (:func:`rows_equal`).
 """
@@ -148,7 +148,7 @@ def interpolated_row_prepare(
 
 @numba.njit(cache=True, nogil=True)
 def row_sum(a: FloatArray, n: int) -> float:  # pragma: no cover - compiled
-    """``sum_{k<n} a[k]``, left to right: the one definition of an eq. 5 weight sum."""
+    """``sum_{k<n} a[k]``, left to right: the one definition of an JC12 eq. 5 weight sum."""
     acc = 0.0
     for k in range(n):
         acc += a[k]
@@ -157,7 +157,7 @@ def row_sum(a: FloatArray, n: int) -> float:  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def row_dot(a: FloatArray, b: FloatArray, n: int) -> float:  # pragma: no cover - compiled
-    """``sum_{k<n} a[k] b[k]``, left to right: the one definition of the eq. 5 attach cost."""
+    """``sum_{k<n} a[k] b[k]``, left to right: the one definition of the JC12 eq. 5 attach cost."""
     acc = 0.0
     for k in range(n):
         acc += a[k] * b[k]

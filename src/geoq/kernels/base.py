@@ -171,7 +171,7 @@ class GaussianOfDistance(Kernel):
     """``k(x, x') = variance * exp(-r^2 / 2)`` with ``r^2 = distance.squared(x, x')``.
 
     The squared-exponential kernel is this with a scaled Euclidean distance;
-    the geodesic kernel (eq. 3) is this with the shortest-path distance.
+    the geodesic kernel (JC12 eq. 3) is this with the shortest-path distance.
     """
 
     def __init__(self, distance: Distance, variance: float = 1.0) -> None:

@@ -21,7 +21,11 @@ from .reference import ReferenceOnlineGP, dtc_posterior
 
 
 class _PerPointSE(SquaredExponential):
-    """A subclass, so the GP takes its generic per-point path (kernel evaluated in Python)."""
+    """An SE that declines the compiled loop, so the GP takes its generic per-point path
+    (kernel evaluated in Python)."""
+
+    def se_parameters(self) -> None:
+        return None
 
 
 def _data(seed: int, n: int, d: int = 2) -> tuple[np.ndarray, np.ndarray]:

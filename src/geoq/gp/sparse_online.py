@@ -81,7 +81,6 @@ from geoq.gp.numerics import (
     robust_cholesky,
 )
 from geoq.kernels.base import Kernel
-from geoq.kernels.stationary import SquaredExponential
 
 # OnlineDiagnostics and robust_cholesky live in geoq.gp.diagnostics and geoq.gp.numerics;
 # they stay importable from here.
@@ -289,13 +288,15 @@ class SparseOnlineGP:
         return self._stream(Xa, ya)
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
-        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies."""
-        k = self.kernel
-        if type(k) is not SquaredExponential or self._dim is None:
+        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
+        (the kernel offers :meth:`~geoq.kernels.base.Kernel.se_parameters`)."""
+        params = self.kernel.se_parameters()
+        if params is None or self._dim is None:
             return None
-        inv_ls = np.broadcast_to(1.0 / np.asarray(k.lengthscale, dtype=np.float64), (self._dim,))
-        period = np.zeros(self._dim) if k.period is None else np.asarray(k.period, np.float64)
-        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(k.variance)
+        lengthscale, period_or_none, variance = params
+        inv_ls = np.broadcast_to(1.0 / np.asarray(lengthscale, dtype=np.float64), (self._dim,))
+        period = np.zeros(self._dim) if period_or_none is None else np.asarray(period_or_none)
+        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(variance)
 
     def _stream(self, X: FloatArray, y: FloatArray) -> SparseOnlineGP:
         if X.shape[0] == 0:
@@ -327,10 +328,10 @@ class SparseOnlineGP:
         The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
         mirrored before a resync and when the batch ends (also on an error). A graph
         kernel's covariance row comes from its fused compiled path
-        (``Kernel._fused_row``), else from ``to_basis``.
+        (``Kernel.fused_row``), else from ``to_basis``.
         """
         kernel = self.kernel
-        fused = kernel._fused_row()
+        fused = kernel.fused_row()
         row_exponent, variance = (None, 1.0) if fused is None else fused
         S, kbuf, bv = self._S, self._kbuf, self._bv
         args = (
@@ -368,7 +369,7 @@ class SparseOnlineGP:
     def _kernel_row(self, x: FloatArray, m: int) -> float:
         """``k(x, BV)`` into ``self._kbuf[:m]`` by ``to_basis``; returns ``k(x, x)``."""
         kx = np.asarray(self.kernel.to_basis(x[None, :], self._bv[:m]), dtype=np.float64)
-        kxx = np.asarray(self.kernel._diag(x[None, :]), dtype=np.float64)
+        kxx = np.asarray(self.kernel.diag(x[None, :]), dtype=np.float64)
         if kx.shape != (1, m) or kxx.shape != (1,):
             raise ValueError(
                 f"kernel returned shapes {kx.shape} and {kxx.shape}; expected (1, {m}) and (1,)"
@@ -511,7 +512,7 @@ class SparseOnlineGP:
         Xa = self._check_X(X)
         n, m = Xa.shape[0], self._m
         if m == 0:  # the prior (the input dimension may not be known yet)
-            prior = np.asarray(self.kernel._diag(Xa), dtype=np.float64)
+            prior = np.asarray(self.kernel.diag(Xa), dtype=np.float64)
             return (np.zeros(n), np.sqrt(np.maximum(prior, 0.0))) if return_std else np.zeros(n)
         mean = np.empty(n)
         std = np.empty(n) if return_std else mean
@@ -526,7 +527,7 @@ class SparseOnlineGP:
                 Xc = Xa[lo : lo + _PREDICT_CHUNK]
                 K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
                 V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
-                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
                 vv = np.einsum("ij,ij->j", V, V)  # [n_c]
                 if repaired:
                     vv = self._rescale_features(V, vv, prior)
@@ -596,7 +597,7 @@ class SparseOnlineGP:
             mean[lo : lo + len(Xc)] = K @ alpha
             if std is not None:
                 H = K @ G  # [n_c, m']
-                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
                 self._store_std(prior - (H * H) @ sign, prior, std[lo : lo + len(Xc)])
 
     # ----------------------------------------------------------- persistence

@@ -523,7 +523,7 @@ class GraphKernel(GaussianOfDistance):
             return None
         return self.distance.row_exponent
 
-    def _fused_row(self) -> tuple[RowExponent, float] | None:
+    def fused_row(self) -> tuple[RowExponent, float] | None:
         fn = self._row_exponent_fn()
         return None if fn is None else (fn, self.variance)
 

@@ -7,7 +7,7 @@ import scipy.spatial.distance
 
 from geoq._geometry import as_period_vector, wrap_difference
 from geoq._typing import ArrayLike, FloatArray
-from geoq.kernels.base import Distance, GaussianOfDistance
+from geoq.kernels.base import Distance, GaussianOfDistance, SEParameters
 
 __all__ = ["Euclidean", "SquaredExponential", "as_period_vector", "as_scale_vector"]
 
@@ -97,6 +97,19 @@ class SquaredExponential(GaussianOfDistance):
     def period(self) -> FloatArray | None:
         assert isinstance(self.distance, Euclidean)
         return self.distance.period
+
+    def se_parameters(self) -> SEParameters | None:
+        """``(lengthscale, period, variance)``, unless a subclass changed what the kernel
+        computes (then the GP must call it)."""
+        cls = type(self)
+        if (
+            cls._matrix is not GaussianOfDistance._matrix
+            or cls.to_basis is not GaussianOfDistance.to_basis
+            or cls._diag is not GaussianOfDistance._diag
+            or type(self.distance) is not Euclidean
+        ):
+            return None
+        return self.lengthscale, self.period, self.variance
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"lengthscale": np.asarray(self.lengthscale), "variance": np.asarray(self.variance)}

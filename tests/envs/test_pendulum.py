@@ -1,4 +1,4 @@
-"""The pure pendulum physics against the SPEC §4 formulas, by a brute-force scalar loop."""
+"""The pure pendulum physics against the formulas of its docstring, by a brute-force scalar loop."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from geoq.envs import (
 
 
 def _reference_step(theta: float, omega: float, u: float) -> tuple[float, float, float]:
-    """SPEC §4 written out with the math module, one pendulum at a time."""
+    """The physics written out with the math module, one pendulum at a time."""
     m, l, g, mu, dt = 1.0, 1.0, 9.81, 0.01, 0.05
     u = min(max(u, -5.0), 5.0)
     reward = math.cos(theta)

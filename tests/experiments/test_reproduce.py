@@ -85,7 +85,7 @@ def test_rerun_resumes_and_gives_identical_files(run_dir, tmp_path):
 def test_plotting_functions_return_figures():
     from geoq.experiments.fig1 import GraphSnapshot
     from geoq.experiments.fig2 import ValueMaps
-    from geoq.plotting import plot_budget_curves, plot_graphs, plot_value_maps
+    from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 
     snap = GraphSnapshot(
         0.3,

@@ -2,7 +2,7 @@
 
 Written for clarity, not speed (GPflow's ``reference.py`` style): the addition
 and the deletion are separate steps with explicit ``np.outer``, ``np.delete`` and
-an explicitly grown ``Q``. It follows SPEC §1 / Csató & Opper (2002) line by line
+an explicitly grown ``Q``. It follows Csató & Opper (2002) line by line
 and is the oracle of the compiled, fused step in :mod:`geoq.gp._step`.
 """
 

@@ -31,7 +31,7 @@ def _state(gp: SparseOnlineGP) -> dict[str, object]:
         "S": gp._S.copy(),
         "alpha": gp._alpha.copy(),
         "mdiag": gp._mdiag.copy(),
-        "counters": gp._counters.copy(),
+        "counters": gp._counts.step.copy(),
         "changes": gp._changes,
         "dim": gp._dim,
     }

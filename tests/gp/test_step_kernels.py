@@ -1,4 +1,4 @@
-"""Oracle tests of the compiled building blocks of :mod:`geoq.gp._step`.
+"""Oracle tests of the compiled building blocks (:mod:`geoq.gp._nb_linalg`, `_nb_delete`).
 
 The step keeps the whitened covariance as its lower triangle; these tests check
 the lower-triangle kernels (symmetric matvec, the Givens deletion of a whitened
@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoq.gp._step import _delete_cholesky, _delete_whitened, _symv_lower
+from geoq.gp._nb_delete import delete_cholesky, delete_whitened
+from geoq.gp._nb_linalg import symv_lower
 
 
 def _spd(rng: np.random.Generator, m: int, cap: int) -> np.ndarray:
@@ -32,7 +33,7 @@ def test_symv_lower_matches_dense(m: int, lo_frac: float) -> None:
     v[:lo] = 0.0
     Sl = np.tril(S) + np.triu(rng.normal(size=(cap, cap)), 1)  # garbage upper triangle
     out = np.full(cap, np.nan)
-    _symv_lower(Sl, v, lo, m, out)
+    symv_lower(Sl, v, lo, m, out)
     np.testing.assert_allclose(out[:m], S[:m, :m] @ v[:m], rtol=1e-13, atol=1e-13)
 
 
@@ -47,7 +48,7 @@ def test_delete_whitened_matches_dense_rotation_and_conditioning(m: int) -> None
         R = np.zeros((cap, cap))
         R[:m, :m] = np.linalg.cholesky(K).T
         cth, sth, x = np.zeros(cap), np.zeros(cap), np.zeros(cap)
-        _delete_cholesky(R, i, m, x, cth, sth)
+        delete_cholesky(R, i, m, x, cth, sth)
         G = np.eye(m)
         for j in range(i + 1, m):  # G^T acts on rows (j, i), in this order
             Gj = np.eye(m)
@@ -67,7 +68,7 @@ def test_delete_whitened_matches_dense_rotation_and_conditioning(m: int) -> None
         Sl = np.tril(S) + np.triu(np.full((cap, cap), np.nan), 1)  # upper never read
         counters = np.zeros(9, dtype=np.int64)
         scratch = np.zeros((2, cap))
-        _delete_whitened(Sl, mu, scratch[0], scratch[1], i, m, cth, sth, counters)
+        delete_whitened(Sl, mu, scratch[0], scratch[1], i, m, cth, sth, counters)
         got = np.tril(Sl[: m - 1, : m - 1])
         np.testing.assert_allclose(got, np.tril(S_ref), rtol=0, atol=1e-12, err_msg=f"i={i}")
         np.testing.assert_allclose(mu[: m - 1], mu_ref, rtol=0, atol=1e-12, err_msg=f"i={i}")

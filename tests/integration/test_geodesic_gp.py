@@ -8,7 +8,7 @@ Checks, on real roll-outs of the fixed policy (inputs scaled by
 * predictive means are finite and stds finite and non-negative everywhere;
 * the repairs an indefinite kernel needs are counted, and the PD resistance
   kernel needs none once ``K_BV`` is kept current;
-* the drift of the online posterior from ``refit`` (SPEC §1 item 2);
+* the drift of the online posterior from ``refit``;
 * save/load round trips (graph included) predict and continue identically.
 """
 
@@ -162,7 +162,7 @@ def test_online_fit_with_deletions_keeps_graph_and_gp_in_sync(name, temporal, da
     assert len(caught) <= 1
     assert len(caught) == 1 or repairs == 0
     if name != "resistance":
-        # k_sp is indefinite on this data (SPEC §1): negative novelty happens and is counted.
+        # k_sp is indefinite on this data (Feragen et al. 2015): negative novelty is counted.
         assert d.negative_novelty > 0
 
 

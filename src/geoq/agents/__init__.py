@@ -1,4 +1,4 @@
-"""Control: agents that learn to act from a GP Q-function (beyond the paper, SPEC §5).
+"""Control: agents that learn to act from a GP Q-function (beyond the paper).
 
 * :mod:`geoq.agents.gpq`: :class:`GPQAgent`, online GP Q-learning with fitted-Q phases.
 * :mod:`geoq.agents.acquisition`: candidate actions and acquisitions (pure functions).

@@ -4,7 +4,7 @@ Importing this package (which ``import geoq`` does) registers
 ``geoq/PendulumSwingUp-v0`` with Gymnasium (entry point
 :class:`geoq.envs.swing_up.PendulumSwingUpEnv`).
 
-* :mod:`geoq.envs.pendulum`: the pure vectorised physics (SPEC §4).
+* :mod:`geoq.envs.pendulum`: the pure vectorised physics.
 * :mod:`geoq.envs.swing_up`: the Gymnasium shell.
 * :mod:`geoq.envs.chain`: a chain MDP with closed-form ``Q^pi``, for checking estimators.
 """

@@ -1,4 +1,4 @@
-"""Pendulum swing-up physics as a pure, vectorised function (SPEC §4).
+"""Pendulum swing-up physics as a pure, vectorised function.
 
 One function, :func:`pendulum_step`, is the single source of truth for the
 dynamics: the Gymnasium shell (:mod:`geoq.envs.swing_up`), the roll-outs, the
@@ -47,7 +47,7 @@ START_NOISE = 0.05
 
 @dataclass(frozen=True)
 class PendulumParams:
-    """Physical constants of the pendulum (SI units; defaults: SPEC §4)."""
+    """Physical constants of the pendulum (SI units)."""
 
     mass: float = 1.0
     """Point mass ``m`` at the end of the rod, kg."""

@@ -156,8 +156,8 @@ def train(
     ``config.json``, each atomically. Returns the agent.
     """
     from geoq import __version__
+    from geoq.experiments.plotting import plot_learning_curve
     from geoq.experiments.reproduce import save_figure, write_csv
-    from geoq.plotting import plot_learning_curve
 
     out = Path(out)
     agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
@@ -377,9 +377,9 @@ def run_control_benchmark(
     ``baselines`` (e.g. ``["sac"]``) adds cells of those baselines with default
     settings, same seeds, budgets and evaluation.
     """
+    from geoq.experiments.plotting import plot_learning_curve
     from geoq.experiments.reproduce import save_figure, write_csv
     from geoq.experiments.sweep import run_sweep
-    from geoq.plotting import plot_learning_curve
 
     out = Path(out)
     cells = [

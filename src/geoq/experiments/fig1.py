@@ -1,4 +1,4 @@
-"""Fig. 1: the MDP-induced graph (eq. 2) built online from roll-outs, for two ``eps``.
+"""Fig. 1: the MDP-induced graph (JC12 eq. 2) built online from roll-outs, for two ``eps``.
 
 A sparse online GP with the geodesic kernel is fitted to the roll-outs; its
 kernel's graph *is* the figure. Degree statistics and connectivity are
@@ -63,7 +63,7 @@ class GraphSnapshot:
 
     Attributes
     ----------
-    eps : threshold of eq. 2.
+    eps : threshold of JC12 eq. 2.
     nodes : ``[n, d]`` node coordinates in raw units (theta, omega, torque).
     edges : ``[m, 2]`` node index pairs ``i < j``.
     stats : degree and connectivity statistics (:func:`graph_statistics`).

@@ -9,8 +9,9 @@ parallel, one file per finished cell):
 2. :func:`budget_cell`, one per (kernel, max_bv, seed): the seed's training
    roll-outs (3 x 250 steps), one GP learner, its MSE against both ground
    truths and its normalised variance; then the same GP after a DTC refit on
-   its final BV set and graph (SPEC §1 item 2), and a learner that refits after
-   every roll-out, so the effect of staleness is measured on the same data.
+   its final BV set and graph (README, "Choices the paper leaves open"), and a
+   learner that refits after every roll-out, so the effect of staleness is
+   measured on the same data.
 """
 
 from __future__ import annotations

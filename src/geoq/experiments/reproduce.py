@@ -48,13 +48,13 @@ from geoq.experiments.fig3 import (
     budget_cell,
     truth_cell,
 )
+from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.experiments.report import render_report
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_spec, run_sweep
 from geoq.experiments.tuning import TUNING_COLUMNS, TuningResult, tune
 from geoq.gp import NumericalWarning
 from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
-from geoq.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy
 from geoq.rollouts import collect_rollouts
 

@@ -1,4 +1,4 @@
-"""Hyper-parameters by evidence and by held-out validation, never by hand (SPEC §1).
+"""Hyper-parameters by evidence and by held-out validation, never by hand.
 
 * Squared-exponential length-scales (one per input dimension), prior variance
   and noise variance: maximum exact-GP evidence on the tuning roll-outs
@@ -10,7 +10,7 @@
 * The evidence's prior variance and noise are then used by *every* kernel, so
   the three learners differ only in their distance.
 * Geodesic kernels: the graph threshold ``eps``, the width ``sigma_sp`` and, for
-  eq. 5, ``sigma_se`` and the variant of the sum (:data:`EQ5_VARIANTS`) are
+  JC12 eq. 5, ``sigma_se`` and the variant of the sum (:data:`EQ5_VARIANTS`) are
   chosen on a small grid by the MSE against Monte-Carlo ``Q^pi`` at held-out
   validation pairs (their Gram matrices are indefinite, so the evidence is not
   defined for them), scored after a refit on the final BV set and graph.
@@ -52,13 +52,13 @@ __all__ = [
     "tune",
 ]
 
-#: Candidate ``sigma_sp`` of eq. 3 (log-spaced around the paper's value, 1; small
+#: Candidate ``sigma_sp`` of JC12 eq. 3 (log-spaced around the paper's value, 1; small
 #: values make nearby points novel, hence a denser, connected graph).
 SIGMA_SP_GRID: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
-#: Candidate ``sigma_se`` of eq. 5 (the paper: "small").
+#: Candidate ``sigma_se`` of JC12 eq. 5 (the paper: "small").
 SIGMA_SE_GRID: tuple[float, ...] = (0.01, 0.1)
 #: Eq. 5 variants ``(normalize_weights, attach_weights)``: the paper's literal sum first,
-#: then the normalised sum with the attaching edge kept (a soft eq. 4).
+#: then the normalised sum with the attaching edge kept (a soft JC12 eq. 4).
 EQ5_VARIANTS: tuple[tuple[bool, bool], ...] = ((False, False), (True, True))
 #: Columns of ``tuning.csv`` (one row per validated geodesic candidate).
 TUNING_COLUMNS: tuple[str, ...] = (

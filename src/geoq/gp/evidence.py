@@ -3,7 +3,7 @@
 The paper (JC12 §3) sets the kernel's hyper-parameters by maximising the evidence
 of the exact GP; we do the same on a random subsample of at most ``max_points``
 points. With ``K_y = variance * K_l + noise * I`` and ``alpha = K_y^{-1} y``
-(Rasmussen & Williams 2006, eqs. 5.8 and 5.9)::
+(Rasmussen & Williams 2006 -- ``RW06`` -- eqs. 5.8 and 5.9)::
 
     log p(y | X, theta) = -y^T alpha / 2 - log|K_y| / 2 - N log(2 pi) / 2
     d log p / d theta_j = tr((alpha alpha^T - K_y^{-1}) dK_y/dtheta_j) / 2
@@ -116,7 +116,7 @@ class EvidenceFit:
 def log_marginal_likelihood(
     kernel: Kernel, noise: float, X: ArrayLike, y: ArrayLike, *, config: NumericsConfig = CONFIG
 ) -> float:
-    """``log p(y | X)`` of the exact GP with ``kernel`` and noise variance ``noise`` (eq. 5.8).
+    """``log p(y | X)`` of the exact GP with ``kernel`` and noise variance ``noise`` (RW06 eq. 5.8).
 
     ``X`` is [N, d], ``y`` is [N].
     """

@@ -20,10 +20,13 @@ from geoq._typing import FloatArray
 
 __all__ = [
     "CONFIG",
+    "VAR_ROUNDING",
     "NotPSDError",
     "NumericalWarning",
     "NumericsConfig",
     "clip_eigenvalues",
+    "is_positive_definite",
+    "robust_cholesky",
     "safe_cholesky",
 ]
 
@@ -59,6 +62,11 @@ class NumericsConfig:
 
 #: The configuration used unless a caller passes its own.
 CONFIG = NumericsConfig()
+
+#: A negative (predictive or whitened) variance above ``-VAR_ROUNDING * k(x, x)`` is
+#: rounding noise: it is clipped to 0 silently; below that it is clipped *and* counted.
+#: A module constant, not a :class:`NumericsConfig` field: the compiled step reads it.
+VAR_ROUNDING = 1e-9
 
 
 def safe_cholesky(
@@ -135,3 +143,39 @@ def clip_eigenvalues(K: FloatArray, *, config: NumericsConfig = CONFIG) -> tuple
     w = np.where(low, floor, w)
     K_pd = (V * w) @ V.T
     return 0.5 * (K_pd + K_pd.T), n_clipped
+
+
+def is_positive_definite(A: FloatArray, shift: float) -> bool:
+    """Whether ``A + shift I`` [m, m] (symmetric) has a Cholesky factor."""
+    try:
+        scipy.linalg.cholesky(A + shift * np.eye(A.shape[0]), check_finite=False)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def robust_cholesky(
+    K: FloatArray, what: str, config: NumericsConfig = CONFIG
+) -> tuple[FloatArray, int, int]:
+    """Cholesky factor of a symmetric matrix under the single jitter policy, never raising.
+
+    Tries :func:`safe_cholesky` (silencing its per-call warning: the caller counts
+    and reports repairs); if the matrix is not PD even with the maximal jitter,
+    clips its eigenvalues (:func:`clip_eigenvalues`) and factorises the repaired
+    matrix.
+
+    Returns
+    -------
+    L : [n, n] lower triangular.
+    jitter_events : 1 if jitter was added, else 0.
+    eig_clips : number of eigenvalues clipped.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        try:
+            L, jitter = safe_cholesky(K, config=config, what=what)
+            return L, int(jitter > 0.0), 0
+        except NotPSDError:
+            K_pd, n_clipped = clip_eigenvalues(K, config=config)
+            L, jitter = safe_cholesky(K_pd, config=config, what=what)
+            return L, int(jitter > 0.0), n_clipped

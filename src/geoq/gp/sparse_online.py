@@ -10,12 +10,13 @@ The posterior process is kept on a basis-vector (BV) set ``x_1 ... x_m`` as::
 with ``k_x = [k(x_1, x), ..., k(x_m, x)]`` and ``Q = K_BV^{-1}`` [m, m]. With every
 point kept (``max_bv >= N``, ``tol = 0``) this is the exact GP:
 ``alpha = (K + sigma0^2 I)^{-1} y`` and ``C = -(K + sigma0^2 I)^{-1}`` (note the minus:
-Csató & Opper's convention, the paper's eq. 1 writes ``- k C k`` with ``C`` positive).
+Csató & Opper's convention, JC12 eq. 1 writes ``- k C k`` with ``C`` positive).
 
 The update for one observation (``q``, ``r``, ``gamma``, the projection with
 ``eta = 1/(1 + gamma r)``, the full update and the KL-optimal deletion with score
-``alpha_i^2 / (Q_ii + C_ii)``) is SPEC §1; the compiled implementation, with the
-equation numbers of Csató & Opper (2002) and the Aston report NCRG/2001/014, is
+``alpha_i^2 / (Q_ii + C_ii)``) is listed equation by equation, with the function that
+computes each, in ``docs/equations.md``; the compiled implementation, citing
+Csató & Opper (2002) as ``CO02`` and the Aston report NCRG/2001/014 as ``TR``, is
 :mod:`geoq.gp._step`. The projected update with ``eta`` is the exact Bayes update
 for the projected likelihood ``y ~ N(e_hat^T f_BV, sigma0^2)``, so on a fixed BV set
 the online pass is the projected-process (DTC) posterior; :meth:`SparseOnlineGP.refit`
@@ -56,7 +57,6 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, fields
 from numbers import Integral
 from os import PathLike
 from typing import Any, Literal, overload
@@ -64,121 +64,32 @@ from typing import Any, Literal, overload
 import numpy as np
 import scipy.linalg
 
-from geoq._io import ArchiveError, load_archive, save_archive
+from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
-from geoq.gp._step import (
-    _NOVCLIP,
-    COUNTER_NAMES,
-    N_WORK,
-    mirror_lower,
-    online_step_lower,
-    refresh_scores,
-    se_stream,
-)
+from geoq.gp._nb_delete import refresh_scores
+from geoq.gp._nb_linalg import mirror_lower
+from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
+from geoq.gp._step import N_WORK, online_step_lower, se_stream
+from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
 from geoq.gp.numerics import (
     CONFIG,
-    NotPSDError,
+    VAR_ROUNDING,
     NumericalWarning,
     NumericsConfig,
-    clip_eigenvalues,
-    safe_cholesky,
+    is_positive_definite,
+    robust_cholesky,
 )
-from geoq.kernels.base import Kernel, kernel_from_arrays, kernel_to_arrays
-from geoq.kernels.stationary import SquaredExponential
+from geoq.kernels.base import Kernel
 
+# OnlineDiagnostics and robust_cholesky live in geoq.gp.diagnostics and geoq.gp.numerics;
+# they stay importable from here.
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
 
-_FORMAT_KIND = "SparseOnlineGP"
-#: 2: counter "noise_floored"; 3: counter "covariance_projections" and the predict-time
-#: feature repair state (older files still load, with their original predictions)
-_FORMAT_VERSION = 3
-_N_COUNTERS_V1 = 8
 _PREDICT_CHUNK = 4096
 #: ``predict`` on at least this many points per BV uses the factored route (one GEMM).
 _FACTOR_ROUTE_MIN = 8
-#: A negative predictive variance above ``-_VAR_ROUNDING * k(x, x)`` is rounding noise:
-#: it is clipped to 0 silently; below that it is clipped *and* counted.
-_VAR_ROUNDING = 1e-9
-
-
-@dataclass(frozen=True)
-class OnlineDiagnostics:
-    """Counters of what a :class:`SparseOnlineGP` did and repaired (since the last reset)."""
-
-    n_seen: int = 0
-    """Observations processed by the online updates."""
-    n_added: int = 0
-    """Observations that became basis vectors (novel: full update)."""
-    n_projected: int = 0
-    """Observations projected onto the current basis (not novel, or negative novelty)."""
-    n_deleted: int = 0
-    """Basis vectors deleted to hold the budget (KL-optimal downdates)."""
-    negative_novelty: int = 0
-    """Observations whose novelty ``gamma`` was negative (indefinite kernel, or rounding)."""
-    variance_clipped: int = 0
-    """Negative predictive variances clipped to 0 (in updates and in :meth:`predict`),
-    counting only those below ``-1e-9 k(x, x)`` (smaller ones are rounding noise)."""
-    novelty_clipped: int = 0
-    """Projections with a negative novelty below rounding level (indefinite kernel), where
-    ``v = R^{-T} k_x`` was scaled onto ``|v|^2 = k(x, x)`` so that the update stays stable."""
-    score_clipped: int = 0
-    """Deletions where ``Q_ii + C_ii <= 0`` had to be repaired (broken numerical state)."""
-    noise_floored: int = 0
-    """Updates that used the noise variance ``CONFIG.noise_floor * k(x, x)`` instead of a
-    smaller ``sigma0^2`` (below the rounding level of the posterior)."""
-    q_resyncs: int = 0
-    """Exact refreshes of ``diag(Q)`` (re-factorisations of ``K_BV`` for basis-tracking kernels)."""
-    jitter_events: int = 0
-    """Factorisations of ``K_BV`` that needed jitter (:func:`~geoq.gp.numerics.safe_cholesky`)."""
-    eig_clips: int = 0
-    """Eigenvalues of ``K_BV`` clipped when even the maximal jitter failed (indefinite kernel)."""
-    covariance_projections: int = 0
-    """Eigenvalues of the whitened posterior covariance ``S`` projected back onto
-    ``[0, 1]`` after a basis-tracking kernel changed ``K_BV`` under the posterior
-    (see ``SparseOnlineGP._resync_q``): a consequence of staleness, not a repair of
-    an indefinite kernel, so it does not trigger the numerical warning."""
-    refits: int = 0
-    """Calls of :meth:`SparseOnlineGP.refit`."""
-    max_q_drift: float = 0.0
-    """Largest ``max|diag(Q)_online - diag(Q)_exact| / max|diag(Q)_exact|`` seen at a resync."""
-
-
-def _is_positive_definite(A: FloatArray, shift: float) -> bool:
-    """Whether ``A + shift I`` [m, m] (symmetric) has a Cholesky factor."""
-    try:
-        scipy.linalg.cholesky(A + shift * np.eye(A.shape[0]), check_finite=False)
-    except np.linalg.LinAlgError:
-        return False
-    return True
-
-
-def robust_cholesky(
-    K: FloatArray, what: str, config: NumericsConfig = CONFIG
-) -> tuple[FloatArray, int, int]:
-    """Cholesky factor of a symmetric matrix under the single jitter policy, never raising.
-
-    Tries :func:`~geoq.gp.numerics.safe_cholesky` (silencing its per-call warning: the
-    caller counts and reports repairs); if the matrix is not PD even with the
-    maximal jitter, clips its eigenvalues (:func:`~geoq.gp.numerics.clip_eigenvalues`)
-    and factorises the repaired matrix.
-
-    Returns
-    -------
-    L : [n, n] lower triangular.
-    jitter_events : 1 if jitter was added, else 0.
-    eig_clips : number of eigenvalues clipped.
-    """
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", NumericalWarning)
-        try:
-            L, jitter = safe_cholesky(K, config=config, what=what)
-            return L, int(jitter > 0.0), 0
-        except NotPSDError:
-            K_pd, n_clipped = clip_eigenvalues(K, config=config)
-            L, jitter = safe_cholesky(K_pd, config=config, what=what)
-            return L, int(jitter > 0.0), n_clipped
 
 
 def _check_budget(max_bv: Any) -> int:
@@ -265,20 +176,8 @@ class SparseOnlineGP:
         self._T = np.zeros((cap, cap))  # [cap, cap] scratch
         self._kbuf = np.zeros(cap)
         self._work = np.zeros((N_WORK, cap))
-        self._counters = np.zeros(len(COUNTER_NAMES), dtype=np.int64)
-        self._extra = {
-            "q_resyncs": 0,
-            "jitter_events": 0,
-            "eig_clips": 0,
-            "covariance_projections": 0,
-            "refits": 0,
-        }
-        self._predict_clipped = 0
-        self._predict_rescaled = 0
-        self._novclip_at_refit = 0
-        self._max_q_drift = 0.0
+        self._counts = Counters()  # every counter, and whether the warning was shown
         self._changes = 0
-        self._warned = False
 
     def _set_dim(self, d: int) -> None:
         if self._dim is None:
@@ -334,37 +233,16 @@ class SparseOnlineGP:
     @property
     def diagnostics(self) -> OnlineDiagnostics:
         """A snapshot of the counters (see :class:`OnlineDiagnostics`)."""
-        pairs = zip(COUNTER_NAMES, self._counters, strict=True)
-        counts: dict[str, Any] = {n: int(v) for n, v in pairs}
-        counts["variance_clipped"] += self._predict_clipped
-        counts["novelty_clipped"] += self._predict_rescaled
-        counts.update(self._extra)
-        counts["max_q_drift"] = self._max_q_drift
-        return OnlineDiagnostics(**counts)
-
-    def _repairs(self) -> dict[str, int]:
-        d = self.diagnostics
-        keys = (
-            "variance_clipped", "novelty_clipped", "score_clipped", "noise_floored",
-            "jitter_events", "eig_clips",
-        )  # fmt: skip
-        return {k: getattr(d, k) for k in keys if getattr(d, k)}
+        return self._counts.snapshot()
 
     def _warn_once(self) -> None:
-        if self._warned:
+        if self._counts.warned:
             return
-        repairs = self._repairs()
+        repairs = self._counts.repairs()
         if not repairs:
             return
-        self._warned = True
-        what = ", ".join(f"{k}={v}" for k, v in repairs.items())
-        warnings.warn(
-            f"SparseOnlineGP repaired its numerical state ({what}); the kernel is probably "
-            "not positive definite on the basis set (e.g. a geodesic kernel) or the noise is "
-            "tiny. Repairs are counted in gp.diagnostics; this warning is shown once per GP.",
-            NumericalWarning,
-            stacklevel=3,
-        )
+        self._counts.warned = True
+        warnings.warn(repair_warning(repairs), NumericalWarning, stacklevel=3)
 
     # ------------------------------------------------------------ validation
     def _check_X(self, X: ArrayLike, name: str = "X") -> FloatArray:
@@ -411,13 +289,15 @@ class SparseOnlineGP:
         return self._stream(Xa, ya)
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
-        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies."""
-        k = self.kernel
-        if type(k) is not SquaredExponential or self._dim is None:
+        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
+        (the kernel offers :meth:`~geoq.kernels.base.Kernel.se_parameters`)."""
+        params = self.kernel.se_parameters()
+        if params is None or self._dim is None:
             return None
-        inv_ls = np.broadcast_to(1.0 / np.asarray(k.lengthscale, dtype=np.float64), (self._dim,))
-        period = np.zeros(self._dim) if k.period is None else np.asarray(k.period, np.float64)
-        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(k.variance)
+        lengthscale, period_or_none, variance = params
+        inv_ls = np.broadcast_to(1.0 / np.asarray(lengthscale, dtype=np.float64), (self._dim,))
+        period = np.zeros(self._dim) if period_or_none is None else np.asarray(period_or_none)
+        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(variance)
 
     def _stream(self, X: FloatArray, y: FloatArray) -> SparseOnlineGP:
         if X.shape[0] == 0:
@@ -434,7 +314,7 @@ class SparseOnlineGP:
                     X, y, t, inv_ls, period, variance, self.noise, self.tol,
                     self.config.novelty_floor, self.config.noise_floor, self.max_bv,
                     self._bv, self._mu, self._S, self._R, self._alpha, self._mdiag, self._m,
-                    self._kbuf, self._work, self._T, self._counters,
+                    self._kbuf, self._work, self._T, self._counts.step,
                     self.resync_every - self._changes,
                 )  # fmt: skip
                 self._changes += changes
@@ -449,17 +329,17 @@ class SparseOnlineGP:
         The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
         mirrored before a resync and when the batch ends (also on an error). A graph
         kernel's covariance row comes from its fused compiled path
-        (``Kernel._fused_row``), else from ``to_basis``.
+        (``Kernel.fused_row``), else from ``to_basis``.
         """
         kernel = self.kernel
-        fused = kernel._fused_row()
+        fused = kernel.fused_row()
         row_exponent, variance = (None, 1.0) if fused is None else fused
         S, kbuf, bv = self._S, self._kbuf, self._bv
         args = (
             self.noise, self.tol, self.config.novelty_floor, self.config.noise_floor,
             self.max_bv, bv, self._mu, S, self._R, self._alpha, self._mdiag,
         )  # fmt: skip
-        work, T, counters = self._work, self._T, self._counters
+        work, T, counters = self._work, self._T, self._counts.step
         repair = self._novelty_repair()
         try:
             for x, yt in zip(X, y.tolist(), strict=True):
@@ -502,7 +382,7 @@ class SparseOnlineGP:
     def _kernel_row(self, x: FloatArray, m: int) -> float:
         """``k(x, BV)`` into ``self._kbuf[:m]`` by ``to_basis``; returns ``k(x, x)``."""
         kx = np.asarray(self.kernel.to_basis(x[None, :], self._bv[:m]), dtype=np.float64)
-        kxx = np.asarray(self.kernel._diag(x[None, :]), dtype=np.float64)
+        kxx = np.asarray(self.kernel.diag(x[None, :]), dtype=np.float64)
         if kx.shape != (1, m) or kxx.shape != (1,):
             raise ValueError(
                 f"kernel returned shapes {kx.shape} and {kxx.shape}; expected (1, {m}) and (1,)"
@@ -518,14 +398,14 @@ class SparseOnlineGP:
         if K.shape != (m, m) or not np.all(np.isfinite(K)):
             raise ValueError(f"kernel.basis_gram returned shape {K.shape} or non-finite values")
         L, jit, clips = robust_cholesky(0.5 * (K + K.T), "K_BV", self.config)
-        self._extra["jitter_events"] += jit
-        self._extra["eig_clips"] += clips
+        self._counts.python["jitter_events"] += jit
+        self._counts.python["eig_clips"] += clips
         return np.ascontiguousarray(L.T)
 
     def _refresh_scores(self, record_drift: bool = True) -> None:
         """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.
 
-        Compiled and single-threaded (:func:`~geoq.gp._step.refresh_scores`): for the
+        Compiled and single-threaded (:func:`~geoq.gp._nb_delete.refresh_scores`): for the
         small matrices here a threaded BLAS call was seen to cost milliseconds on a
         busy machine.
         """
@@ -534,7 +414,7 @@ class SparseOnlineGP:
             self._R, self._mu, self._S, self._m, self._alpha, self._mdiag, Z, self._T
         )
         if record_drift:
-            self._max_q_drift = max(self._max_q_drift, drift)
+            self._counts.max_q_drift = max(self._counts.max_q_drift, drift)
 
     @single_blas_thread  # per change with a resistance kernel: limit here, not per update
     def _resync_q(self) -> None:
@@ -560,7 +440,7 @@ class SparseOnlineGP:
             self._S[:m, :m] = self._valid_whitened_covariance(S)
             self._R[:m, :m] = R_new
         self._refresh_scores()
-        self._extra["q_resyncs"] += 1
+        self._counts.python["q_resyncs"] += 1
 
     def _valid_whitened_covariance(self, S: FloatArray) -> FloatArray:
         """``S`` [m, m] with its spectrum projected onto ``[0, 1]``.
@@ -575,15 +455,13 @@ class SparseOnlineGP:
         ``diagnostics.covariance_projections``.
         """
         S = 0.5 * (S + S.T)
-        if _is_positive_definite(S, _VAR_ROUNDING) and _is_positive_definite(
-            -S, 1.0 + _VAR_ROUNDING
-        ):
+        if is_positive_definite(S, VAR_ROUNDING) and is_positive_definite(-S, 1.0 + VAR_ROUNDING):
             return S  # two Cholesky attempts: far cheaper than the eigendecomposition
         w, U = scipy.linalg.eigh(S, check_finite=False)
-        bad = (w < -_VAR_ROUNDING) | (w > 1.0 + _VAR_ROUNDING)
+        bad = (w < -VAR_ROUNDING) | (w > 1.0 + VAR_ROUNDING)
         if not np.any(bad):
             return S
-        self._extra["covariance_projections"] += int(np.count_nonzero(bad))
+        self._counts.python["covariance_projections"] += int(np.count_nonzero(bad))
         S = (U * np.clip(w, 0.0, 1.0)) @ U.T
         return 0.5 * (S + S.T)
 
@@ -604,7 +482,7 @@ class SparseOnlineGP:
         """
         Xa, ya = self._check_Xy(X, y)
         m = self._m
-        self._extra["refits"] += 1
+        self._counts.python["refits"] += 1
         if m == 0:
             return self
         R = self._factor_gram()  # [m, m] upper
@@ -612,15 +490,15 @@ class SparseOnlineGP:
         V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
         B = self.noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
         LB, jit, clips = robust_cholesky(B, "DTC system matrix", self.config)
-        self._extra["jitter_events"] += jit
-        self._extra["eig_clips"] += clips
+        self._counts.python["jitter_events"] += jit
+        self._counts.python["eig_clips"] += clips
         Binv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
         self._R[:m, :m] = R
         self._mu[:m] = Binv @ (V @ ya)
         S = self.noise * Binv
         self._S[:m, :m] = 0.5 * (S + S.T)
         self._changes = 0
-        self._novclip_at_refit = int(self._counters[_NOVCLIP])  # raw features from here on
+        self._counts.novclip_at_refit = self._counts.novelty_clipped_online  # raw features now
         self._refresh_scores(record_drift=False)  # a new posterior: nothing to compare with
         self._warn_once()
         return self
@@ -647,14 +525,14 @@ class SparseOnlineGP:
         Xa = self._check_X(X)
         n, m = Xa.shape[0], self._m
         if m == 0:  # the prior (the input dimension may not be known yet)
-            prior = np.asarray(self.kernel._diag(Xa), dtype=np.float64)
+            prior = np.asarray(self.kernel.diag(Xa), dtype=np.float64)
             return (np.zeros(n), np.sqrt(np.maximum(prior, 0.0))) if return_std else np.zeros(n)
         mean = np.empty(n)
         std = np.empty(n) if return_std else mean
         # Contiguous copies: LAPACK on strided views of the [cap, cap] buffers is slow.
         R, S = np.ascontiguousarray(self._R[:m, :m]), np.ascontiguousarray(self._S[:m, :m])
         mu, bv = self._mu[:m], self._bv[:m]
-        repaired = self._repaired_features
+        repaired = self._counts.features_repaired
         if n >= _FACTOR_ROUTE_MIN * m and not repaired:
             self._predict_factored(Xa, R, S, mu, bv, mean, std if return_std else None)
         else:
@@ -662,7 +540,7 @@ class SparseOnlineGP:
                 Xc = Xa[lo : lo + _PREDICT_CHUNK]
                 K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
                 V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
-                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
                 vv = np.einsum("ij,ij->j", V, V)  # [n_c]
                 if repaired:
                     vv = self._rescale_features(V, vv, prior)
@@ -674,11 +552,6 @@ class SparseOnlineGP:
             return mean
         self._warn_once()
         return mean, std
-
-    @property
-    def _repaired_features(self) -> bool:
-        """Whether online updates since the last refit rescaled ``v`` (``novelty_clipped``)."""
-        return bool(self._counters[_NOVCLIP] > self._novclip_at_refit)
 
     def _rescale_features(self, V: FloatArray, vv: FloatArray, prior: FloatArray) -> FloatArray:
         """The update's negative-novelty repair applied to test points, in place.
@@ -692,17 +565,17 @@ class SparseOnlineGP:
         and they are used unchanged. Columns of ``V`` [m, n] are rescaled where
         ``vv`` [n] exceeds ``prior`` [n]; returns the new ``|v|^2`` [n].
         """
-        over = vv > prior * (1.0 + _VAR_ROUNDING)
+        over = vv > prior * (1.0 + VAR_ROUNDING)
         if not np.any(over):
             return vv
-        self._predict_rescaled += int(np.count_nonzero(over))
+        self._counts.predict_rescaled += int(np.count_nonzero(over))
         V[:, over] *= np.sqrt(prior[over] / vv[over])
         out = vv.copy()
         out[over] = prior[over]
         return out
 
     def _store_std(self, var: FloatArray, prior: FloatArray, out: FloatArray) -> None:
-        self._predict_clipped += int(np.count_nonzero(var < -_VAR_ROUNDING * prior))
+        self._counts.predict_clipped += int(np.count_nonzero(var < -VAR_ROUNDING * prior))
         out[:] = np.sqrt(np.maximum(var, 0.0))
 
     def _predict_factored(
@@ -737,51 +610,27 @@ class SparseOnlineGP:
             mean[lo : lo + len(Xc)] = K @ alpha
             if std is not None:
                 H = K @ G  # [n_c, m']
-                prior = np.asarray(self.kernel._diag(Xc), dtype=np.float64)  # [n_c]
+                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
                 self._store_std(prior - (H * H) @ sign, prior, std[lo : lo + len(Xc)])
 
     # ----------------------------------------------------------- persistence
     def save(self, path: str | PathLike[str]) -> None:
         """Save the model (kernel included) as a versioned ``.npz`` without pickle."""
-        save_archive(path, _FORMAT_KIND, _FORMAT_VERSION, self.to_arrays())
+        save_archive(path, FORMAT_KIND, FORMAT_VERSION, self.to_arrays())
 
     def to_arrays(self) -> dict[str, Any]:
         """The model (kernel included) as plain arrays: what :meth:`save` writes.
 
         For embedding a GP in a larger archive (e.g. an agent's), in the current
-        format version; :meth:`from_arrays` reads it back.
+        format version; :meth:`from_arrays` reads it back. The format and its
+        migrations live in :mod:`geoq.gp._persist`.
         """
-        m = self._m
-        arrays: dict[str, Any] = {
-            "noise": np.float64(self.noise),
-            "max_bv": np.int64(self.max_bv),
-            "tol": np.float64(self.tol),
-            "resync_every": np.int64(self.resync_every),
-            "dim": np.int64(-1 if self._dim is None else self._dim),
-            "basis_vectors": self._bv[:m],
-            "cholesky_factor": np.triu(self._R[:m, :m]),
-            "mu": self._mu[:m],
-            "S": self._S[:m, :m],
-            "score_alpha": self._alpha[:m],
-            "score_mdiag": self._mdiag[:m],
-            "counters": self._counters,
-            "changes": np.int64(self._changes),
-            "warned": np.bool_(self._warned),
-        }
-        for f in fields(OnlineDiagnostics):
-            if f.name in self._extra:
-                arrays[f"extra.{f.name}"] = np.int64(self._extra[f.name])
-        arrays["predict_clipped"] = np.int64(self._predict_clipped)
-        arrays["predict_rescaled"] = np.int64(self._predict_rescaled)
-        arrays["novelty_clipped_at_refit"] = np.int64(self._novclip_at_refit)
-        arrays["max_q_drift"] = np.float64(self._max_q_drift)
-        arrays.update(kernel_to_arrays(self.kernel))
-        return arrays
+        return gp_to_arrays(self)
 
     @classmethod
     def load(cls, path: str | PathLike[str]) -> SparseOnlineGP:
         """Load a model written by :meth:`save` (basis hooks are *not* replayed)."""
-        version, a = load_archive(path, _FORMAT_KIND, _FORMAT_VERSION)
+        version, a = load_archive(path, FORMAT_KIND, FORMAT_VERSION)
         return cls.from_arrays(a, version=version, source=path)
 
     @classmethod
@@ -797,74 +646,7 @@ class SparseOnlineGP:
         Raises :class:`~geoq._io.ArchiveError` naming ``source`` on missing or
         inconsistent entries.
         """
-        version = version or _FORMAT_VERSION
-        path = source
-        get = _archive_getter(a, path)
-        try:
-            kernel = kernel_from_arrays(a)
-        except (KeyError, ValueError, TypeError) as exc:
-            raise ArchiveError(f"{path}: cannot rebuild the kernel ({exc})") from exc
-        try:
-            gp = cls(
-                kernel,
-                noise=float(get("noise", ())),
-                max_bv=int(get("max_bv", ())),
-                tol=float(get("tol", ())),
-                resync_every=int(get("resync_every", ())),
-            )
-        except ValueError as exc:
-            raise ArchiveError(f"{path}: invalid model parameters ({exc})") from exc
-        dim = int(get("dim", ()))
-        if kernel.input_dim is not None and dim != kernel.input_dim:
-            raise ArchiveError(
-                f"{path}: model dimension {dim} does not match the kernel's {kernel.input_dim}"
-            )
-        bv = get("basis_vectors", None)
-        if bv.ndim != 2 or bv.shape[0] > gp.max_bv or (dim >= 0 and bv.shape[1] != dim):
-            raise ArchiveError(f"{path}: basis_vectors has shape {bv.shape}; corrupt model")
-        m = bv.shape[0]
-        if not kernel.follows_basis(bv):
-            raise ArchiveError(
-                f"{path}: the kernel's graph nodes differ from basis_vectors; corrupt model"
-            )
-        if dim >= 0:
-            gp._dim = dim
-            gp._reset_state()
-        gp._m = m
-        gp._bv[:m] = bv
-        R = get("cholesky_factor", (m, m))
-        S = get("S", (m, m))
-        if not (np.all(np.diag(R) > 0.0) and np.array_equal(R, np.triu(R))):
-            raise ArchiveError(f"{path}: cholesky_factor is not upper triangular with a positive "
-                               "diagonal; corrupt model")  # fmt: skip
-        if not np.array_equal(S, S.T):
-            raise ArchiveError(f"{path}: S is not symmetric; corrupt model")
-        gp._R[:m, :m] = R
-        gp._mu[:m] = get("mu", (m,))
-        gp._S[:m, :m] = S
-        gp._alpha[:m] = get("score_alpha", (m,))
-        gp._mdiag[:m] = get("score_mdiag", (m,))
-        counters = get("counters", None)
-        n_old = _N_COUNTERS_V1 if version == 1 else len(COUNTER_NAMES)
-        if counters.shape != (n_old,):
-            raise ArchiveError(
-                f"{path}: entry 'counters' has shape {counters.shape}, expected ({n_old},)"
-            )
-        gp._counters[:n_old] = counters  # version 1 had no noise_floored counter
-        gp._changes = int(get("changes", ()))
-        gp._warned = bool(get("warned", ()))
-        for name in gp._extra:
-            if version < 3 and name == "covariance_projections":
-                continue  # not recorded before version 3
-            gp._extra[name] = int(get(f"extra.{name}", ()))
-        gp._predict_clipped = int(get("predict_clipped", ()))
-        if version >= 3:
-            gp._predict_rescaled = int(get("predict_rescaled", ()))
-            gp._novclip_at_refit = int(get("novelty_clipped_at_refit", ()))
-        else:  # older files predicted with the raw features: keep their predictions
-            gp._novclip_at_refit = int(gp._counters[_NOVCLIP])
-        gp._max_q_drift = float(get("max_q_drift", ()))
-        return gp
+        return gp_from_arrays(cls, a, version or FORMAT_VERSION, source)
 
     def get_params(self) -> dict[str, Any]:
         """Constructor parameters (kernel, noise, max_bv, tol, resync_every)."""
@@ -881,23 +663,3 @@ class SparseOnlineGP:
             f"SparseOnlineGP(kernel={self.kernel!r}, noise={self.noise:g}, "
             f"max_bv={self.max_bv}, tol={self.tol:g}, n_bv={self._m})"
         )
-
-
-def _archive_getter(
-    arrays: dict[str, np.ndarray], path: str | PathLike[str]
-) -> Callable[[str, tuple[int, ...] | None], np.ndarray]:
-    """A reader of archive entries that raises :class:`ArchiveError` on anything odd."""
-
-    def get(name: str, shape: tuple[int, ...] | None) -> np.ndarray:
-        if name not in arrays:
-            raise ArchiveError(f"{path}: entry {name!r} is missing; the file is corrupt")
-        arr = arrays[name]
-        if shape is not None and arr.shape != shape:
-            raise ArchiveError(f"{path}: entry {name!r} has shape {arr.shape}, expected {shape}")
-        if arr.dtype.kind in "fc" and not np.all(np.isfinite(arr)):
-            raise ArchiveError(f"{path}: entry {name!r} contains NaN or inf; corrupt model")
-        if arr.dtype.kind not in "fiub":
-            raise ArchiveError(f"{path}: entry {name!r} has dtype {arr.dtype}; corrupt model")
-        return arr
-
-    return get

@@ -1,6 +1,6 @@
 """The online MDP-induced graph over the GP's basis vectors, with exact incremental APSP.
 
-Paper §4, eq. (2): when ``x_t`` enters the basis set it becomes a node, linked
+Paper §4, JC12 eq. (2): when ``x_t`` enters the basis set it becomes a node, linked
 to every node ``x_i`` with ``exp(-||x_i - x_t||^2) > eps`` by an edge of weight
 ``||x_i - x_t||^2``. When the GP deletes a basis vector its node goes too. The
 all-pairs shortest-path matrix ``P`` (``inf`` = unreachable) is kept equal to
@@ -26,11 +26,11 @@ what Dijkstra gives on the current graph after every change:
 Options beyond the paper, all off by default:
 
 * ``edge_weight="euclidean"``: edges weigh ``||x_i - x_j||`` instead of the
-  squared distance (the eq. 2 *criterion* is unchanged).
+  squared distance (the JC12 eq. 2 *criterion* is unchanged).
 * ``period``: per-dimension wrap-around period (``0`` = ordinary dimension),
   with the convention of :class:`geoq.kernels.stationary.Euclidean`: the
   difference on a periodic dimension is taken on the circle, so ``theta = pi``
-  and ``-pi`` are the same point. Used for the eq. 2 criterion, the edge
+  and ``-pi`` are the same point. Used for the JC12 eq. 2 criterion, the edge
   weights and every distance the kernels take to nodes.
 * ``temporal_edges=True``: successive basis vectors *of the same roll-out* are
   also linked (weight = the same edge weight, whatever ``eps`` says). Call
@@ -41,19 +41,25 @@ Options beyond the paper, all off by default:
 
 Nearest-node queries use a cached :class:`scipy.spatial.cKDTree` for large
 batches (it pays for prediction on grids); single-point queries and the
-eq. 2 neighbour search of an added node are brute force, O(n d), which is
+JC12 eq. 2 neighbour search of an added node are brute force, O(n d), which is
 cheaper than rebuilding a tree after every change (measured in
 ``benchmarks/bench_graph.py``).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 import scipy.sparse
 from scipy.spatial import cKDTree
 
+from geoq._geometry import (
+    as_period_vector,
+    squared_distances_row,
+    wrap_difference,
+    wrapped_squared_distances,
+)
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
 from geoq.graph._apsp import (
@@ -62,12 +68,7 @@ from geoq.graph._apsp import (
     delete_node_paths,
     drop_index,
     insert_edge,
-    squared_distances_row,
-    wrapped_squared_distances,
 )
-
-if TYPE_CHECKING:
-    from geoq.kernels.stationary import Euclidean
 
 __all__ = ["EdgeWeight", "MDPGraph"]
 
@@ -79,14 +80,14 @@ _KDTREE_MIN_QUERIES = 32
 
 
 class MDPGraph:
-    """Online graph over basis vectors with exact all-pairs shortest paths (eq. 2).
+    """Online graph over basis vectors with exact all-pairs shortest paths (JC12 eq. 2).
 
     Parameters
     ----------
     eps : edge threshold in ``[0, 1]``: nodes ``i, t`` are linked iff
-        ``exp(-||x_i - x_t||^2) > eps`` (eq. 2). ``eps = 0`` links every pair,
+        ``exp(-||x_i - x_t||^2) > eps`` (JC12 eq. 2). ``eps = 0`` links every pair,
         ``eps = 1`` none.
-    edge_weight : ``"squared"`` (eq. 2, default) or ``"euclidean"``.
+    edge_weight : ``"squared"`` (JC12 eq. 2, default) or ``"euclidean"``.
     period : optional per-dimension wrap-around period ``[d]`` (``0`` = ordinary).
     temporal_edges : also link successive nodes of the same roll-out.
     capacity : initial size of the preallocated buffers; they double when full.
@@ -111,18 +112,13 @@ class MDPGraph:
     ) -> None:
         eps = float(eps)
         if not 0.0 <= eps <= 1.0:
-            raise ValueError(f"eps must lie in [0, 1] (eq. 2), got {eps!r}")
+            raise ValueError(f"eps must lie in [0, 1] (JC12 eq. 2), got {eps!r}")
         if edge_weight not in ("squared", "euclidean"):
             raise ValueError(f"edge_weight must be 'squared' or 'euclidean', got {edge_weight!r}")
-        # Imported here: geoq.kernels imports this module (the geodesic kernel), so a
-        # module-level import would be circular. Same period convention as the SE kernel.
-        from geoq.kernels.stationary import Euclidean, as_period_vector
-
         self.eps = eps
         self.edge_weight: EdgeWeight = edge_weight
         self.period = as_period_vector(period, None)
         self.temporal_edges = bool(temporal_edges)
-        self._metric: Euclidean = Euclidean(scale=1.0, period=self.period)
         self._zero_period: FloatArray | None = None
         self._dim: int | None = None if self.period is None else int(self.period.shape[0])
         self._cap = max(int(capacity), 1)
@@ -189,7 +185,7 @@ class MDPGraph:
 
     @property
     def adjacency(self) -> scipy.sparse.csr_array:
-        """[n, n] sparse matrix of edge weights (eq. 2, plus temporal edges if enabled)."""
+        """[n, n] sparse matrix of edge weights (JC12 eq. 2, plus temporal edges if enabled)."""
         return _to_csgraph(self._W[: self._n, : self._n])
 
     @property
@@ -263,7 +259,7 @@ class MDPGraph:
             r2t = self.squared_distances_to_nodes(X[tie])
             idx[tie] = np.argmin(r2t, axis=1)
         nodes = self._X[:n]
-        diff = self._metric._scaled_difference(X - nodes[idx])
+        diff = wrap_difference(X - nodes[idx], self.period)
         return idx, np.einsum("nd,nd->n", diff, diff)
 
     def _tree_coords(self, X: FloatArray) -> FloatArray:
@@ -291,7 +287,7 @@ class MDPGraph:
         return self._rollout
 
     def add_node(self, x: ArrayLike) -> int:
-        """Append ``x`` [d] as node ``n``, connect it by eq. 2, update ``P``; return its index."""
+        """Append ``x`` [d] as node ``n``, link it (JC12 eq. 2), update ``P``; return its index."""
         xa = as_float_point(x, "x", self._dim)
         if self._dim is None:
             self._dim = int(xa.shape[0])
@@ -304,7 +300,7 @@ class MDPGraph:
         squared_distances_row(
             np.ascontiguousarray(xa), self._X, n, self._period_or_zeros(d), r2, neg
         )
-        e = np.exp(neg[:n])  # eq. 2, evaluated literally: exp(-r2) > eps
+        e = np.exp(neg[:n])  # JC12 eq. 2, evaluated literally: exp(-r2) > eps
         prev = -1
         if self.temporal_edges:
             prev = self._temporal_neighbour(v, self._rollout, before=True)

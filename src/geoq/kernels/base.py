@@ -34,6 +34,10 @@ __all__ = [
 #: ``f(x, BV, m) -> exponents [m] | None`` of a kernel's fused per-point row.
 RowExponent = Callable[[FloatArray, FloatArray, int], FloatArray | None]
 
+#: ``(lengthscale, period, variance)`` of a kernel the GP may evaluate in its compiled
+#: squared-exponential loop: a scalar or ``[d]`` length-scale, ``[d]`` periods or None.
+SEParameters = tuple[float | FloatArray, FloatArray | None, float]
+
 _KERNELS: dict[str, type[Kernel]] = {}
 _DISTANCES: dict[str, type[Distance]] = {}
 
@@ -86,7 +90,18 @@ class Distance(ABC):
 
 
 class Kernel(ABC):
-    """A covariance function ``k(x, x')`` on ``d``-dimensional inputs."""
+    """A covariance function ``k(x, x')`` on ``d``-dimensional inputs.
+
+    What a GP may call (the protocol of :class:`~geoq.gp.SparseOnlineGP`):
+    :meth:`diag` (prior variances), :meth:`to_basis` and :meth:`basis_gram`
+    (covariances with its basis set), the hooks :meth:`basis_added`,
+    :meth:`basis_removed`, :meth:`basis_cleared` and :meth:`follows_basis`
+    (kernels with ``tracks_basis``), and two optional fast paths, each None
+    unless the kernel offers it: :meth:`fused_row` (a compiled per-point row) and
+    :meth:`se_parameters` (the kernel is a squared exponential the GP may
+    evaluate itself). A subclass implements :meth:`_matrix` (and ``_diag`` if
+    it has a cheaper diagonal).
+    """
 
     tracks_basis: ClassVar[bool] = False
     #: False for kernels whose Gram matrices can be indefinite (a Gaussian of a graph
@@ -147,13 +162,19 @@ class Kernel(ABC):
         """Whether the kernel's basis-following state matches ``basis`` [m, d]."""
         return True
 
-    def _fused_row(self) -> tuple[RowExponent, float] | None:
+    def fused_row(self) -> tuple[RowExponent, float] | None:
         """A compiled per-point path for the GP, or None (the GP then uses :meth:`to_basis`).
 
         ``(f, c)``: whenever ``f(x [d], BV [cap, d], m)`` returns an array ``e`` [m]
         (None means "not here, use to_basis"), ``k(x, BV[:m]) = c * exp(e)`` and
         ``k(x, x) = c``, bit for bit.
         """
+        return None
+
+    def se_parameters(self) -> SEParameters | None:
+        """The squared-exponential parameters if this kernel is exactly
+        ``variance * exp(-0.5 sum_k (wrap(x_k - x'_k) / lengthscale_k)^2)`` (so the GP
+        may evaluate it in its compiled loop), else None."""
         return None
 
     # -- persistence ------------------------------------------------------------------
@@ -171,7 +192,7 @@ class GaussianOfDistance(Kernel):
     """``k(x, x') = variance * exp(-r^2 / 2)`` with ``r^2 = distance.squared(x, x')``.
 
     The squared-exponential kernel is this with a scaled Euclidean distance;
-    the geodesic kernel (eq. 3) is this with the shortest-path distance.
+    the geodesic kernel (JC12 eq. 3) is this with the shortest-path distance.
     """
 
     def __init__(self, distance: Distance, variance: float = 1.0) -> None:

@@ -1,6 +1,6 @@
-"""The geodesic (shortest-path) kernel of the paper, eqs. (3)-(5).
+"""The geodesic (shortest-path) kernel of the paper, JC12 eqs. (3)-(5).
 
-``k_sp(x, x') = amplitude * exp(-SP(x, x')^2 / (2 sigma_sp))`` (eq. 3; note
+``k_sp(x, x') = amplitude * exp(-SP(x, x')^2 / (2 sigma_sp))`` (JC12 eq. 3; note
 ``sigma_sp`` is *not* squared, the paper's convention), built as tinygp-style
 ``GaussianOfDistance(GraphDistance(...))`` with ``r^2 = SP^2 / sigma_sp``.
 
@@ -11,36 +11,36 @@ graph's edge-weight function: ``||.||^2`` by default, ``||.||`` with
 * **Between nodes** ``SP(x_i, x_j) = P_ij``. A point that coincides exactly
   with a node (zero wrap-aware distance) *is* that node (lowest index if
   several nodes coincide); the GP's basis vectors are the nodes, by identity.
-* ``method="nearest"`` (eq. 4): ``SP(x*, x_j) = w(x* - x_i) + P_ij``, ``x_i``
+* ``method="nearest"`` (JC12 eq. 4): ``SP(x*, x_j) = w(x* - x_i) + P_ij``, ``x_i``
   the nearest node. Two points that are not nodes are pendant leaves hung on
   their nearest nodes: ``SP(x, y) = w(x - a(x)) + P[a(x), a(y)] + w(y - a(y))``,
   i.e. the shortest path in the graph augmented with both points — a metric.
-* ``method="interpolated"`` (eq. 5): ``SP(x*, x_j) = sum_i k_SE(x*, x_i) P_ij``,
+* ``method="interpolated"`` (JC12 eq. 5): ``SP(x*, x_j) = sum_i k_SE(x*, x_i) P_ij``,
   ``k_SE(x, x') = exp(-||x - x'||^2 / (2 sigma_se))``; node weights are the unit
   vector ``e_i``. For two non-node points the bilinear extension
-  ``SP(x, y) = k_x^T P k_y`` is used: symmetric, eq. 5 when either side is a
+  ``SP(x, y) = k_x^T P k_y`` is used: symmetric, JC12 eq. 5 when either side is a
   node, ``P`` on nodes. ``normalize=True`` uses weights that sum to one,
   computed as a softmax of ``-||x - x_i||^2 / (2 sigma_se)``: they never all
   underflow, and far from every node they concentrate on the nearest node(s)
   (the limit of the normalised weights), i.e. ``SP(x*, x_j) -> P[a(x*), j]``.
   Unnormalised weights vanish far from the nodes, so there ``SP -> 0`` and
-  ``k -> amplitude``: that is eq. 5 as published.
+  ``k -> amplitude``: that is JC12 eq. 5 as published.
 * **Eq. 5 stalls the sparse GP** (measured, ``tests/integration/test_geodesic_gp.py``):
   with one node, ``P = [[0]]`` so ``SP(x*, x_0) = 0`` and ``k(x*, x_0) = A`` for
   *every* ``x*``; the novelty of every later point is exactly 0 and the BV set
   never grows past its first point. ``attach=True`` (beyond the paper, off by
-  default) averages eq. 4's path *through each node* instead:
-  ``SP(x*, x_j) = sum_i k_SE(x*, x_i) (w(x* - x_i) + P_ij)``, i.e. eq. 5 with
-  the attaching edge of eq. 4 kept; with ``normalize=True`` it is a soft
-  nearest-node version of eq. 4 (equal to eq. 4 in the limit
+  default) averages JC12 eq. 4's path *through each node* instead:
+  ``SP(x*, x_j) = sum_i k_SE(x*, x_i) (w(x* - x_i) + P_ij)``, i.e. JC12 eq. 5 with
+  the attaching edge of JC12 eq. 4 kept; with ``normalize=True`` it is a soft
+  nearest-node version of JC12 eq. 4 (equal to JC12 eq. 4 in the limit
   ``sigma_se -> 0``). Between two non-node points it is
   ``sum_{l,m} k_x,l k_y,m (w(x - x_l) + P_lm + w(y - x_m))``.
 * **Identical points** have ``SP = 0``, so ``k(x, x) = amplitude`` for every
-  ``x`` (eq. 3 at distance 0). For distinct non-node points the extensions
+  ``x`` (JC12 eq. 3 at distance 0). For distinct non-node points the extensions
   above are used even when the points are very close: the kernel has a
   nugget-like jump at the diagonal off the nodes.
 * **Disconnected components.** ``P_ij = inf`` gives ``k = 0`` exactly. In
-  eq. 5 a node with zero weight contributes nothing (``0 * inf := 0``, so
+  JC12 eq. 5 a node with zero weight contributes nothing (``0 * inf := 0``, so
   underflowed weights never give NaN), and weights below
   ``NEGLIGIBLE_WEIGHT = 1e-12`` times the largest weight of their row are set
   to zero first (they cannot change a finite sum in float64). A node with a
@@ -66,17 +66,17 @@ import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, check_positive
-from geoq.graph._apsp import (
-    EINSUM_ROW_MAX,
+from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels._geodesic_row import (
     interpolated_row_exponent,
     interpolated_row_prepare,
     interpolated_row_weights,
     nearest_row_exponent,
-    numpy_summation_reproduced,
+    row_dots,
+    row_sums,
     rows_equal,
     squares_over,
 )
-from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
 from geoq.kernels.base import Distance, GaussianOfDistance, Kernel, RowExponent
 
 __all__ = [
@@ -148,7 +148,7 @@ def pendant_distances(
     ``D(x, x_j) = w(x - a(x)) + M[a(x), j]`` ([N, n] when ``Y`` is None), and
     ``D(x, y) = w(x - a(x)) + M[a(x), a(y)] + w(y - a(y))`` [N, M] with ``D = 0``
     for identical points. ``M`` [n, n] is a node-to-node distance (shortest
-    paths for eq. 4, effective resistances for the PD kernel); ``w`` is the
+    paths for JC12 eq. 4, effective resistances for the PD kernel); ``w`` is the
     graph's edge weight of the attaching edge (0 for points on a node).
     """
     n = graph.n_nodes
@@ -258,18 +258,18 @@ class BasisGraphDistance(Distance):
 
 
 class GraphDistance(BasisGraphDistance):
-    """``r^2(x, x') = SP(x, x')^2 / sigma_sp`` on the MDP-induced graph (eqs. 3-5).
+    """``r^2(x, x') = SP(x, x')^2 / sigma_sp`` on the MDP-induced graph (JC12 eqs. 3-5).
 
     See the module docstring for the exact definitions on and off the nodes.
 
     Parameters
     ----------
     graph : the :class:`~geoq.graph.MDPGraph` that follows the GP's basis set.
-    method : ``"nearest"`` (eq. 4) or ``"interpolated"`` (eq. 5).
-    sigma_sp : eq. 3 width (divides ``SP^2``; not squared).
-    sigma_se : eq. 5 width of the interpolation weights (not squared).
-    normalize : eq. 5 weights sum to one (off by default, as in the paper).
-    attach : eq. 5 averages ``w(x* - x_i) + P_ij`` instead of ``P_ij`` (module doc).
+    method : ``"nearest"`` (JC12 eq. 4) or ``"interpolated"`` (JC12 eq. 5).
+    sigma_sp : JC12 eq. 3 width (divides ``SP^2``; not squared).
+    sigma_se : JC12 eq. 5 width of the interpolation weights (not squared).
+    normalize : JC12 eq. 5 weights sum to one (off by default, as in the paper).
+    attach : JC12 eq. 5 averages ``w(x* - x_i) + P_ij`` instead of ``P_ij`` (module doc).
     """
 
     def __init__(
@@ -283,7 +283,7 @@ class GraphDistance(BasisGraphDistance):
     ) -> None:
         if method not in ("nearest", "interpolated"):
             raise ValueError(
-                f"method must be 'nearest' (eq. 4) or 'interpolated' (eq. 5), got {method!r}"
+                f"method must be 'nearest' (JC12 eq. 4) or 'interpolated' (eq. 5), got {method!r}"
             )
         super().__init__(graph)
         self.method: Method = method
@@ -302,7 +302,7 @@ class GraphDistance(BasisGraphDistance):
 
     def _split(self) -> tuple[FloatArray, FloatArray, bool]:
         """``split_unreachable(P)`` and whether any pair is unreachable, cached until the
-        graph changes (eq. 5 is O(n^2) otherwise)."""
+        graph changes (JC12 eq. 5 is O(n^2) otherwise)."""
         cache = self._split_cache
         if cache is None or cache[0] != self.graph.version:
             P = self._P
@@ -316,7 +316,7 @@ class GraphDistance(BasisGraphDistance):
 
     # -- shortest paths -------------------------------------------------------------------
     def interpolation_weights(self, X: FloatArray) -> FloatArray:
-        """[N, n] eq. 5 weights ``k_SE(x*, x_i)``; rows of points on node ``i`` are ``e_i``."""
+        """[N, n] JC12 eq. 5 weights ``k_SE(x*, x_i)``; rows of points on node ``i`` are ``e_i``."""
         return self._weights_and_costs(X)[0]
 
     def _weights_and_costs(self, X: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -338,11 +338,7 @@ class GraphDistance(BasisGraphDistance):
             if on_node.size:
                 W[on_node] = 0.0
                 W[on_node, np.argmin(r2[on_node], axis=1)] = 1.0
-        cost = (
-            np.einsum("nk,nk->n", W, self.graph.weight_of(r2))
-            if self.attach
-            else np.zeros(r2.shape[0])
-        )
+        cost = row_dots(W, self.graph.weight_of(r2)) if self.attach else np.zeros(r2.shape[0])
         return W, cost
 
     def _weights_off_nodes(self, r2: FloatArray, argmin: int) -> FloatArray:
@@ -359,11 +355,11 @@ class GraphDistance(BasisGraphDistance):
         W = np.exp(log_rel) if self.normalize else np.exp(-z)
         W[log_rel < -_NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
         if self.normalize:
-            W /= W.sum(axis=1, keepdims=True)
+            W /= row_sums(W)[:, None]
         return W
 
     def shortest_path_to_nodes(self, X: FloatArray) -> FloatArray:
-        """``SP(x*, x_j)`` [N, n] by eq. 4 or eq. 5 (``P`` rows for points on nodes)."""
+        """``SP(x*, x_j)`` [N, n] by JC12 eq. 4 or eq. 5 (``P`` rows for points on nodes)."""
         if self.method == "nearest":
             return pendant_distances(self.graph, self._P, X)
         W, cost = self._weights_and_costs(X)
@@ -382,7 +378,7 @@ class GraphDistance(BasisGraphDistance):
         Pf, Ui, unreachable = self._split()
         D = _weighted_paths(Wx, Pf, Ui, Wy, unreachable)
         if self.attach:  # sum_{l,m} wx_l wy_m (cx_l + cy_m) = cx sum(wy) + sum(wx) cy
-            D += cx[:, None] * Wy.sum(axis=1)[None, :] + Wx.sum(axis=1)[:, None] * cy[None, :]
+            D += cx[:, None] * row_sums(Wy)[None, :] + row_sums(Wx)[:, None] * cy[None, :]
         if Y is X:
             D = 0.5 * (D + D.T)
         return _zero_identical(g, D, X, Y)
@@ -392,15 +388,15 @@ class GraphDistance(BasisGraphDistance):
 
         ``basis`` is the GP's BV buffer (``[>= m, d]``). The same floating-point
         operations as :meth:`squared_to_basis` on ``x[None, :]``, fused into compiled
-        calls around the numpy ``exp`` (eq. 5 weights), ``W @ P`` and ``einsum``
-        (attach cost); the result is bit-identical. Returns a view of scratch space
-        (valid until the next call), or None where the general path must be used
-        (fewer than two nodes, basis out of sync, another dimension).
+        calls around the numpy ``exp`` (JC12 eq. 5 weights) and ``W @ P``; both paths sum
+        by :mod:`geoq.kernels._geodesic_row`, so the result is bit-identical. Returns a
+        view of scratch space (valid until the next call), or None where the general
+        path must be used (fewer than two nodes, basis out of sync, another dimension).
         """
         g = self.graph
         n = g._n
         d = x.shape[0]
-        if n < 2 or n != m or g._dim != d or n > EINSUM_ROW_MAX:
+        if n < 2 or n != m or g._dim != d:
             return None
         rows = self._row_views
         if rows[0].shape[0] < n:
@@ -424,7 +420,7 @@ class GraphDistance(BasisGraphDistance):
             W = np.zeros((1, n))
             W[0, -2 - a] = 1.0
             wr = g.weight_of(scr[0:1, :n])
-            cost = float(np.einsum("nk,nk->n", W, wr)[0]) if self.attach else 0.0
+            cost = float(row_dots(W, wr)[0]) if self.attach else 0.0
         else:
             W = np.exp(scr[2:3, :n])
             cost = interpolated_row_weights(
@@ -523,12 +519,11 @@ class GraphKernel(GaussianOfDistance):
             cls.to_basis is not GaussianOfDistance.to_basis
             or cls._diag is not GaussianOfDistance._diag
             or type(self.distance) is not GraphDistance
-            or not numpy_summation_reproduced()
         ):
             return None
         return self.distance.row_exponent
 
-    def _fused_row(self) -> tuple[RowExponent, float] | None:
+    def fused_row(self) -> tuple[RowExponent, float] | None:
         fn = self._row_exponent_fn()
         return None if fn is None else (fn, self.variance)
 
@@ -542,20 +537,20 @@ class GraphKernel(GaussianOfDistance):
 
 
 class GeodesicKernel(GraphKernel):
-    """Shortest-path kernel ``k_sp = amplitude * exp(-SP^2 / (2 sigma_sp))`` (eqs. 3-5).
+    """Shortest-path kernel ``k_sp = amplitude * exp(-SP^2 / (2 sigma_sp))`` (JC12 eqs. 3-5).
 
     Parameters
     ----------
-    eps : eq. 2 edge threshold in ``[0, 1]``.
-    method : ``"nearest"`` (eq. 4) or ``"interpolated"`` (eq. 5).
-    sigma_sp : eq. 3 width (paper default 1; divides ``SP^2``, not squared).
-    sigma_se : eq. 5 width of the interpolation weights (small; not squared).
-    amplitude : ``A`` of eq. 3, ``k(x, x) = A``.
-    normalize : eq. 5 weights sum to one (off = the paper).
-    attach : eq. 5 keeps eq. 4's attaching edge, ``sum_i k_SE (w(x* - x_i) + P_ij)``
+    eps : JC12 eq. 2 edge threshold in ``[0, 1]``.
+    method : ``"nearest"`` (JC12 eq. 4) or ``"interpolated"`` (JC12 eq. 5).
+    sigma_sp : JC12 eq. 3 width (paper default 1; divides ``SP^2``, not squared).
+    sigma_se : JC12 eq. 5 width of the interpolation weights (small; not squared).
+    amplitude : ``A`` of JC12 eq. 3, ``k(x, x) = A``.
+    normalize : JC12 eq. 5 weights sum to one (off = the paper).
+    attach : JC12 eq. 5 keeps JC12 eq. 4's attaching edge, ``sum_i k_SE (w(x* - x_i) + P_ij)``
         (off = the paper; needed for the sparse GP to grow, see the module doc).
-    edge_weight : ``"squared"`` (eq. 2) or ``"euclidean"``; also the cost of the
-        eq. 4 attaching edge.
+    edge_weight : ``"squared"`` (JC12 eq. 2) or ``"euclidean"``; also the cost of the
+        JC12 eq. 4 attaching edge.
     period : optional per-dimension wrap-around period ``[d]`` (0 = ordinary).
     temporal_edges : link successive basis vectors of the same roll-out; call
         :meth:`start_rollout` before each roll-out.
@@ -619,7 +614,7 @@ class GeodesicKernel(GraphKernel):
         return self.graph_distance.attach
 
     def shortest_path_to_nodes(self, X: ArrayLike) -> FloatArray:
-        """``SP(x*, x_j)`` [N, n_bv] by eq. 4 or eq. 5 (rows of ``P`` for points on nodes)."""
+        """``SP(x*, x_j)`` [N, n_bv] by JC12 eq. 4 or eq. 5 (rows of ``P`` for points on nodes)."""
         Xa = as_float_matrix(X, "X", self.graph.dim)
         return self.graph_distance.shortest_path_to_nodes(Xa)
 

@@ -3,7 +3,7 @@
 The geodesic kernel ``exp(-SP^2 / (2 sigma_sp))`` is not positive definite in
 general (Feragen et al., CVPR 2015; a cycle graph is a counterexample, pinned
 in ``tests/kernels/test_geodesic.py``). This module offers a kernel on the
-*same* graph (eq. 2 edges, same options) that is positive semi-definite on
+*same* graph (JC12 eq. 2 edges, same options) that is positive semi-definite on
 every finite set of points, nodes or not:
 
     ``k(x, x') = amplitude * exp(-R(x, x') / lengthscale)``
@@ -11,7 +11,7 @@ every finite set of points, nodes or not:
 with ``R`` the **effective resistance** of the graph whose edges are resistors
 of resistance = edge weight (``||x_i - x_j||^2`` by default), i.e. conductance
 ``1 / w``. Off the nodes, a point is a pendant leaf hung on its nearest node by
-a resistor of resistance ``w(x - a(x))`` (the same construction as eq. 4), so
+a resistor of resistance ``w(x - a(x))`` (the same construction as JC12 eq. 4), so
 ``R(x, x_j) = w(x - a(x)) + R[a(x), j]`` and, for two distinct points,
 ``R(x, y) = w(x - a(x)) + R[a(x), a(y)] + w(y - a(y))``; ``R(x, x) = 0``.
 
@@ -348,7 +348,7 @@ class ResistanceKernel(GraphKernel):
     Parameters
     ----------
     eps, edge_weight, period, temporal_edges, capacity : the graph, exactly as
-        for :class:`~geoq.kernels.geodesic.GeodesicKernel` (eq. 2 edges; an
+        for :class:`~geoq.kernels.geodesic.GeodesicKernel` (JC12 eq. 2 edges; an
         edge's resistance is its weight).
     lengthscale : resistance scale ``l`` of ``exp(-R / l)``.
     amplitude : ``k(x, x)``.

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.spatial.distance
 
+from geoq._geometry import as_period_vector, wrap_difference
 from geoq._typing import ArrayLike, FloatArray
-from geoq.kernels.base import Distance, GaussianOfDistance
+from geoq.kernels.base import Distance, GaussianOfDistance, SEParameters
 
 __all__ = ["Euclidean", "SquaredExponential", "as_period_vector", "as_scale_vector"]
 
@@ -25,21 +26,6 @@ def as_scale_vector(value: ArrayLike, name: str) -> tuple[float | FloatArray, in
     return arr.copy(), int(arr.shape[0])
 
 
-def as_period_vector(period: ArrayLike | None, dim: int | None) -> FloatArray | None:
-    """Per-dimension wrap-around periods ``[d]``; ``0`` or ``nan`` marks a non-periodic dim."""
-    if period is None:
-        return None
-    arr = np.asarray(period, dtype=np.float64)
-    if arr.ndim != 1:
-        raise ValueError(f"period must be a 1-D per-dimension array, got shape {arr.shape}")
-    if dim is not None and arr.shape[0] != dim:
-        raise ValueError(f"period has {arr.shape[0]} entries; expected {dim}")
-    arr = np.where(np.isnan(arr), 0.0, arr)
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise ValueError(f"period entries must be >= 0 (0 = not periodic), got {period!r}")
-    return arr
-
-
 class Euclidean(Distance):
     """``r^2(x, x') = sum_k ((x_k - x'_k) / scale_k)^2``, optionally wrap-aware.
 
@@ -48,7 +34,8 @@ class Euclidean(Distance):
     scale : positive scalar or per-dimension array ``[d]`` (a length-scale).
     period : optional per-dimension period ``[d]`` (in input units, before
         scaling); ``0`` marks an ordinary dimension. On a periodic dimension the
-        difference is taken on the circle: ``theta = pi`` and ``-pi`` coincide.
+        difference is taken on the circle (:func:`geoq._geometry.wrap`): ``theta = pi``
+        and ``-pi`` coincide.
     """
 
     def __init__(self, scale: ArrayLike = 1.0, period: ArrayLike | None = None) -> None:
@@ -58,11 +45,7 @@ class Euclidean(Distance):
             self.input_dim = int(self.period.shape[0])
 
     def _scaled_difference(self, diff: FloatArray) -> FloatArray:
-        if self.period is not None:
-            p = self.period
-            wrapped = diff - p * np.round(diff / np.where(p > 0, p, 1.0))
-            diff = np.where(p > 0, wrapped, diff)
-        return diff / self.scale
+        return wrap_difference(diff, self.period) / self.scale
 
     def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         if self.period is None:
@@ -71,9 +54,7 @@ class Euclidean(Distance):
         scale = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (X.shape[1],))
         r2 = np.zeros((X.shape[0], Y.shape[0]))
         for k, p in enumerate(self.period):
-            diff = np.subtract.outer(X[:, k], Y[:, k])  # [n, m]
-            if p > 0:
-                diff -= p * np.round(diff / p)
+            diff = wrap_difference(np.subtract.outer(X[:, k], Y[:, k]), p)  # [n, m]
             diff /= scale[k]
             r2 += diff * diff
         return r2
@@ -116,6 +97,19 @@ class SquaredExponential(GaussianOfDistance):
     def period(self) -> FloatArray | None:
         assert isinstance(self.distance, Euclidean)
         return self.distance.period
+
+    def se_parameters(self) -> SEParameters | None:
+        """``(lengthscale, period, variance)``, unless a subclass changed what the kernel
+        computes (then the GP must call it)."""
+        cls = type(self)
+        if (
+            cls._matrix is not GaussianOfDistance._matrix
+            or cls.to_basis is not GaussianOfDistance.to_basis
+            or cls._diag is not GaussianOfDistance._diag
+            or type(self.distance) is not Euclidean
+        ):
+            return None
+        return self.lengthscale, self.period, self.variance
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"lengthscale": np.asarray(self.lengthscale), "variance": np.asarray(self.variance)}

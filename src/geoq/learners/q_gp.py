@@ -7,8 +7,8 @@ to the end of the episode, as in the paper). The pairs are streamed, in order,
 into a :class:`~geoq.gp.SparseOnlineGP` whose kernel is one of
 
 * ``"euclidean"``: squared exponential (the paper's "standard GP"),
-* ``"nearest"``: geodesic kernel, eq. 3 with eq. 4,
-* ``"interpolated"``: geodesic kernel, eq. 3 with eq. 5,
+* ``"nearest"``: geodesic kernel, JC12 eq. 3 with JC12 eq. 4,
+* ``"interpolated"``: geodesic kernel, JC12 eq. 3 with JC12 eq. 5,
 * ``"resistance"`` (beyond the paper): ``A exp(-R / l)`` of the effective
   resistance ``R`` on the same graph, positive definite
   (:class:`~geoq.kernels.ResistanceKernel`).
@@ -55,7 +55,7 @@ class QGPConfig:
     """Everything that defines a GP Q-function learner (recorded with every result)."""
 
     kernel: KernelName = "nearest"
-    """``euclidean`` (squared exponential), ``nearest`` (eq. 4), ``interpolated`` (eq. 5) or
+    """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated`` (eq. 5) or
     ``resistance`` (positive-definite kernel on the same graph)."""
     max_bv: int = 100
     """Basis-vector budget of the sparse online GP."""
@@ -66,25 +66,25 @@ class QGPConfig:
     lengthscale: float | tuple[float, ...] = 1.0
     """Squared-exponential length-scale(s), in scaled input units (``euclidean`` only)."""
     amplitude: float = 1.0
-    """Prior variance ``A`` of every kernel (eq. 3; the paper sets 1)."""
+    """Prior variance ``A`` of every kernel (JC12 eq. 3; the paper sets 1)."""
     eps: float = 0.3
-    """Graph threshold of eq. 2: edge iff ``exp(-||x_i - x_j||^2) > eps``."""
+    """Graph threshold of JC12 eq. 2: edge iff ``exp(-||x_i - x_j||^2) > eps``."""
     sigma_sp: float = 1.0
-    """Width of eq. 3: ``k = A exp(-SP^2 / (2 sigma_sp))`` (paper: 1)."""
+    """Width of JC12 eq. 3: ``k = A exp(-SP^2 / (2 sigma_sp))`` (paper: 1)."""
     sigma_se: float = 0.01
-    """Width of the interpolation weights of eq. 5."""
+    """Width of the interpolation weights of JC12 eq. 5."""
     normalize_weights: bool = False
-    """Normalise the eq. 5 weights to sum to one (the paper's sum is unnormalised)."""
+    """Normalise the JC12 eq. 5 weights to sum to one (the paper's sum is unnormalised)."""
     attach_weights: bool = False
     """Eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
-    literal eq. 5 gives every point zero novelty against a one-node graph, so its BV set
+    literal JC12 eq. 5 gives every point zero novelty against a one-node graph, so its BV set
     never grows past one point; see :mod:`geoq.kernels.geodesic`)."""
     resistance_lengthscale: float = 1.0
     """``l`` of the ``resistance`` kernel ``A exp(-R / l)``."""
     wrap_angle: bool = False
     """Wrap-aware distance on periodic inputs (theta); the paper uses raw angles."""
     temporal_edges: bool = False
-    """Also link successive basis vectors of a roll-out in the graph (SPEC §1 item 5)."""
+    """Also link successive basis vectors of a roll-out in the graph (beyond JC12 eq. 2)."""
     pd_novelty: bool = False
     """Measure the novelty of a new point under the positive-definite (eigenvalue-flip)
     repair of the augmented Gram (:class:`~geoq.gp.pd_novelty.PDNoveltyOnlineGP`), so an

@@ -1,6 +1,6 @@
 """Per-dimension input scaling of state-action pairs ``x = [s, a]``.
 
-The geodesic graph (eq. 2) connects two basis vectors when
+The geodesic graph (JC12 eq. 2) connects two basis vectors when
 ``exp(-||x_i - x_j||^2) > eps``, i.e. when ``||x_i - x_j||^2 < -ln(eps)``: an
 absolute threshold in *input units*. The graph, and therefore the kernel, is
 only as meaningful as the units the inputs are measured in, so the learner maps
@@ -73,7 +73,7 @@ class InputScaling:
 #:
 #: Measured (5 roll-outs x 250 steps of the fixed policy, ``max_bv = 200``,
 #: ``nearest``): node spacing is set by the novelty rule *in the same scaled
-#: units* as eq. 2's threshold, so a rescaling alone cannot connect the graph at
+#: units* as JC12 eq. 2's threshold, so a rescaling alone cannot connect the graph at
 #: ``sigma_sp = 1`` (largest component <= 33% for every scaling in
 #: {0.5, 1, 2} x {0.5, 1, 2} x {2.5, 5, 10}, mean degree 1-3). With this scaling
 #: and ``sigma_sp = 0.03`` the ``eps = 0.3`` graph is connected (62 nodes, mean

@@ -1,4 +1,5 @@
-"""Results -> :class:`matplotlib.figure.Figure`. Nothing here saves a file (the CLI does).
+"""Results -> :class:`matplotlib.figure.Figure` (the top of the data flow: it reads the
+experiment records of :mod:`geoq.experiments`). Nothing here saves a file (the CLI does).
 
 Figures are built on ``matplotlib.figure.Figure`` objects directly (no pyplot
 state), so they are safe in worker processes and tests.

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
-from geoq.experiments.stats import mean_interval
+from geoq.experiments.stats import log_interval, mean_interval
 
 __all__ = [
     "KERNEL_STYLE",
@@ -109,7 +109,8 @@ def plot_value_maps(maps: ValueMaps) -> Figure:
 def plot_budget_curves(
     rows: Sequence[Mapping[str, Any]], *, reference: str = "mc", posterior: str = "online"
 ) -> Figure:
-    """Fig. 3: (a) MSE and (b) normalised variance vs ``max_bv``, mean and 95% interval over seeds.
+    """Fig. 3: (a) MSE and (b) normalised variance vs ``max_bv``, over seeds: geometric mean
+    and 95% log-scale interval (:func:`~geoq.experiments.stats.log_interval`).
 
     ``rows`` are the tidy rows of ``fig3.csv`` (one per kernel, budget and seed).
     ``reference`` chooses the MSE column: ``"mc"`` (``mse``) or ``"td"`` (``mse_td``).
@@ -131,8 +132,8 @@ def plot_budget_curves(
         style = KERNEL_STYLE[kernel]
         budgets = sorted({int(r["max_bv"]) for r in rows if r["kernel"] == kernel})
         for ax, col in ((ax_mse, column), (ax_var, var_column)):
-            stats = [
-                mean_interval(
+            stats = [  # the same log-scale intervals as REPORT.md: never below 0
+                log_interval(
                     float(r[col]) for r in rows if r["kernel"] == kernel and int(r["max_bv"]) == b
                 )
                 for b in budgets

@@ -92,10 +92,10 @@ _PREDICT_CHUNK = 4096
 _FACTOR_ROUTE_MIN = 8
 
 
-def _check_budget(max_bv: Any) -> int:
-    if isinstance(max_bv, bool) or not isinstance(max_bv, Integral) or int(max_bv) < 1:
-        raise ValueError(f"max_bv must be an integer >= 1, got {max_bv!r}")
-    return int(max_bv)
+def _check_budget(value: Any, name: str = "max_bv") -> int:
+    if isinstance(value, bool) or not isinstance(value, Integral) or int(value) < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
 
 
 def _check_tol(tol: Any) -> float:
@@ -103,8 +103,11 @@ def _check_tol(tol: Any) -> float:
         t = float(tol)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"tol must be a finite number >= 0, got {tol!r}") from exc
-    if not np.isfinite(t) or t < 0.0:
-        raise ValueError(f"tol must be a finite number >= 0, got {tol!r}")
+    if not np.isfinite(t) or t < 0.0 or t > 1.0:
+        raise ValueError(
+            f"tol must be a finite number >= 0 and <= 1 (a novelty threshold relative to "
+            f"k(x, x): above 1 no point would ever become a basis vector), got {tol!r}"
+        )
     return t
 
 
@@ -149,6 +152,7 @@ class SparseOnlineGP:
     ) -> None:
         if not isinstance(kernel, Kernel):
             raise ValueError(f"kernel must be a geoq Kernel, got {type(kernel).__name__}")
+        kernel.bind(self)  # a graph kernel serves one GP only
         self.kernel = kernel
         self.noise = check_positive(noise, "noise")
         self.max_bv = _check_budget(max_bv)
@@ -157,7 +161,7 @@ class SparseOnlineGP:
             resync_every = (
                 1 if kernel.tracks_basis and kernel.positive_definite else max(64, 2 * self.max_bv)
             )
-        self.resync_every = _check_budget(resync_every)
+        self.resync_every = _check_budget(resync_every, "resync_every")
         self.config = config
         self._dim: int | None = kernel.input_dim
         self._reset_state()

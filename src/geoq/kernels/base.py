@@ -14,6 +14,7 @@ and turns its configuration (and state) into plain arrays with ``to_arrays`` /
 
 from __future__ import annotations
 
+import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any, ClassVar
@@ -107,6 +108,36 @@ class Kernel(ABC):
     #: False for kernels whose Gram matrices can be indefinite (a Gaussian of a graph
     #: distance); the GP's numerics policy treats them differently where it matters.
     positive_definite: ClassVar[bool] = True
+    #: The model whose basis hooks drive this kernel's state (weak), see :meth:`bind`.
+    _owner: weakref.ref[Any] | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Copies (``copy.deepcopy``, pickling) start unbound: a copy is a new kernel."""
+        state = dict(self.__dict__)
+        state.pop("_owner", None)
+        return state
+
+    def bind(self, owner: object) -> None:
+        """Attach the kernel to the model that will drive its basis hooks.
+
+        A kernel that follows a basis set (``tracks_basis``: it owns a graph over
+        the model's basis vectors) holds that model's state, so two models
+        sharing it would silently change each other's predictions: binding it
+        to a second live model raises ``ValueError``. Stateless kernels can be
+        shared freely.
+        """
+        if not self.tracks_basis:
+            return
+        current = self._owner() if self._owner is not None else None
+        taken = current is not None and current is not owner
+        del current  # no strong reference to the other model in a traceback's frame
+        if taken:
+            raise ValueError(
+                f"this {type(self).__name__} already belongs to another model (it keeps that "
+                "model's graph); give each model its own kernel, e.g. copy.deepcopy(kernel) "
+                "before fitting, or a new kernel with the same arguments"
+            )
+        self._owner = weakref.ref(owner)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -32,7 +32,9 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    phase ``y_mean, y_scale`` become the mean and standard deviation of the
    targets, so the prior mean (the value of what was never tried) is the
    average value seen and the prior std is the spread of values.
-6. **Bounded targets.** Targets are clipped to ``[r_min, r_max] / (1 - gamma)``
+6. **Threads.** ``learn`` and ``train`` run on one BLAS thread (the library's
+   policy, :mod:`geoq._threads`): their matrices have a few hundred rows.
+7. **Bounded targets.** Targets are clipped to ``[r_min, r_max] / (1 - gamma)``
    of the rewards observed so far: every discounted return lies there, and
    without it regression + max diverged (targets of 3e5 after 9 episodes on the
    swing-up).
@@ -52,6 +54,7 @@ import scipy.linalg
 from gymnasium import spaces
 
 from geoq._io import ArchiveError, load_archive, save_archive
+from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray
 from geoq.agents.acquisition import (
     EXPLORATION_MODES,
@@ -393,6 +396,7 @@ class GPQAgent:
         g = self.config.gamma
         return min(lo, lo / (1.0 - g)), max(hi, hi / (1.0 - g))
 
+    @single_blas_thread
     def learn(
         self,
         total_timesteps: int,
@@ -471,6 +475,7 @@ class GPQAgent:
             bar.close()
         return self
 
+    @single_blas_thread
     def train(self) -> int:
         """One fitted-Q phase on the stored transitions; returns the number of sweeps."""
         c = self.config

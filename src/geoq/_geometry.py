@@ -19,6 +19,7 @@ from geoq._typing import ArrayLike, FloatArray
 
 __all__ = [
     "as_period_vector",
+    "scaled_wrapped_squared_distances",
     "squared_distances_row",
     "wrap",
     "wrap_difference",
@@ -84,6 +85,24 @@ def wrapped_squared_distances(
     for i in range(N):
         for j in range(M):
             out[i, j] = wrapped_r2(X[i], Y, j, period)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def scaled_wrapped_squared_distances(
+    X: FloatArray, Y: FloatArray, period: FloatArray, scale: FloatArray
+) -> FloatArray:  # pragma: no cover - compiled
+    """``[N, d] x [M, d] -> [N, M]``: ``sum_k (wrap(x_k - y_k, p_k) / scale_k)^2``, summed
+    over ``k`` in order (the squared-exponential kernel's distance on periodic inputs)."""
+    N, M, d = X.shape[0], Y.shape[0], X.shape[1]
+    out = np.empty((N, M))
+    for i in range(N):
+        for j in range(M):
+            s = 0.0
+            for k in range(d):
+                diff = wrap(X[i, k] - Y[j, k], period[k]) / scale[k]
+                s += diff * diff
+            out[i, j] = s
     return out
 
 

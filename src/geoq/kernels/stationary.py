@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.spatial.distance
 
-from geoq._geometry import as_period_vector, wrap_difference
+from geoq._geometry import as_period_vector, scaled_wrapped_squared_distances, wrap_difference
 from geoq._typing import ArrayLike, FloatArray
 from geoq.kernels.base import Distance, GaussianOfDistance, SEParameters
 
@@ -50,14 +50,15 @@ class Euclidean(Distance):
     def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         if self.period is None:
             return scipy.spatial.distance.cdist(X / self.scale, Y / self.scale, "sqeuclidean")
-        # One [n, m] pass per dimension: no [n, m, d] temporary (3-6x faster for d = 3).
+        # Compiled: numpy's per-dimension passes cost ~0.7 ms for the [21, 200] of one agent
+        # step, mostly call overhead; tests/test_geometry.py pins the bits to numpy's.
         scale = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (X.shape[1],))
-        r2 = np.zeros((X.shape[0], Y.shape[0]))
-        for k, p in enumerate(self.period):
-            diff = wrap_difference(np.subtract.outer(X[:, k], Y[:, k]), p)  # [n, m]
-            diff /= scale[k]
-            r2 += diff * diff
-        return r2
+        return scaled_wrapped_squared_distances(
+            np.ascontiguousarray(X),
+            np.ascontiguousarray(Y),
+            self.period,
+            np.ascontiguousarray(scale),
+        )
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"scale": np.asarray(self.scale)}

@@ -126,3 +126,21 @@ def test_unsupported_envs_and_arguments_raise() -> None:
         GPQAgent(PointToGoal(), lengthscale=(0.1, 0.2, 0.3))
     with pytest.raises(ValueError, match="unknown GPQConfig"):
         GPQConfig.from_dict({"kernel": "euclidean", "bogus": 1})
+
+
+def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() -> None:
+    none = _agent(replay="none").learn(120)
+    uniform = _agent(replay="uniform").learn(120)
+    assert none.fitted_q_sweeps and set(none.fitted_q_sweeps) == {0}
+    assert max(uniform.fitted_q_sweeps) > 0
+    # Without replay a stored target is exactly what was bootstrapped online: r + gamma max Q
+    # clipped, never recomputed; the sweeps of uniform replay move them.
+    # The first episode (40 steps) is the same for both (same seed, same prior); its
+    # targets differ only because uniform replay re-bootstrapped them.
+    np.testing.assert_array_equal(uniform.buffer.arrays()[0][:40], none.buffer.arrays()[0][:40])
+    assert not np.array_equal(uniform.buffer.targets()[:40], none.buffer.targets()[:40])
+    before = none.buffer.targets()
+    none.train()
+    np.testing.assert_array_equal(none.buffer.targets(), before)
+    with pytest.raises(ValueError, match="replay must be one of"):
+        _agent(replay="graph")

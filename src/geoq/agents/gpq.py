@@ -74,6 +74,9 @@ __all__ = ["EpisodeRecord", "GPQAgent", "GPQConfig"]
 
 Prior = Literal["midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
+Replay = Literal["uniform", "none"]
+#: Replay modes implemented so far (SPEC §5 also names "graph": the replay issue).
+REPLAYS: tuple[str, ...] = ("uniform", "none")
 
 _ARCHIVE_KIND = "GPQAgent"
 _ARCHIVE_VERSION = 1
@@ -134,6 +137,10 @@ class GPQConfig:
     """A phase stops when no target moves by more than this (in units of ``y_scale``)."""
     window: int = 5_000
     """Fitted-Q phases use the most recent ``window`` transitions."""
+    replay: Replay = "uniform"
+    """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
+    all transitions alike); ``none``: no replay, the targets stay those computed
+    online when each step was taken and a phase only refits the posterior to them."""
     prior: Prior = "optimistic"
     """What the GP assumes of ``Q`` where it has no data (the standardisation
     ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
@@ -145,6 +152,11 @@ class GPQConfig:
     def __post_init__(self) -> None:
         if self.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
+        if self.replay not in REPLAYS:
+            raise ValueError(
+                f"replay must be one of {REPLAYS}, got {self.replay!r} (graph replay is not "
+                "implemented yet)"
+            )
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if self.exploration not in EXPLORATION_MODES:
@@ -491,6 +503,11 @@ class GPQAgent:
             gp.refit(X, (y0 - self.y_mean) / self.y_scale)
         m = gp.n_bv
         if m == 0:
+            return 0
+        if c.replay == "none":  # no re-bootstrapping: refit to the online targets
+            self.y_mean, self.y_scale = self._standardisation(y0, bounds)
+            gp.refit(X, (y0 - self.y_mean) / self.y_scale)
+            self.fitted_q_sweeps.append(0)
             return 0
         Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
         bv = gp.basis_vectors

@@ -146,35 +146,28 @@ def reproduce(
     sweep = {"jobs": jobs, "backend": backend, "scheduler": scheduler, "progress": progress}
     run_sweep(truth_cells, truth_cell, truth_dir, desc="ground truth", **sweep)  # type: ignore[arg-type]
 
-    cells = [
-        BudgetCell(
-            kernel=k,
-            max_bv=b,
+    def budget(kernel: str, max_bv: int, tc: TruthCell, variant: str) -> BudgetCell:
+        learner = tuning.configs[kernel]
+        if variant != "tuned":
+            learner = variant_learner(variant, learner)
+        return BudgetCell(
+            kernel=kernel,
+            max_bv=max_bv,
             seed=tc.seed,
             root_seed=cfg.root_seed,
             train_rollouts=cfg.train_rollouts,
             train_steps=cfg.train_steps,
-            learner=tuning.configs[k].as_dict(),
+            learner=learner.as_dict(),
             truth_dir=str(truth_dir),
             truth=cell_spec(tc),
+            variant=variant,
         )
-        for tc in truth_cells
-        for k in cfg.kernels
-        for b in cfg.budgets
+
+    cells = [
+        budget(k, b, tc, "tuned") for tc in truth_cells for k in cfg.kernels for b in cfg.budgets
     ]
     cells += [
-        BudgetCell(
-            kernel=k,
-            max_bv=b,
-            seed=tc.seed,
-            root_seed=cfg.root_seed,
-            train_rollouts=cfg.train_rollouts,
-            train_steps=cfg.train_steps,
-            learner=variant_learner(v, tuning.configs[k]).as_dict(),
-            truth_dir=str(truth_dir),
-            truth=cell_spec(tc),
-            variant=v,
-        )
+        budget(k, b, tc, v)
         for v in cfg.variants
         for tc in truth_cells
         for k in VARIANT_KERNELS

@@ -394,6 +394,13 @@ def bench_control(
             help="Exploration mode(s) to compare: ucb, thompson, gaussian (repeat the option).",
         ),
     ] = None,
+    replays: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--replay",
+            help="Replay mode(s) to compare: none, uniform, graph (repeat the option).",
+        ),
+    ] = None,
     baselines: Annotated[
         list[str] | None,
         typer.Option(
@@ -423,8 +430,9 @@ def bench_control(
     config: Annotated[Path | None, _CONFIG_OPTION] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
 ) -> None:
-    """Benchmark the agent: steps to success for kernels x exploration modes x seeds (resumable)."""
+    """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
     from geoq.agents.acquisition import EXPLORATION_MODES
+    from geoq.agents.gpq import REPLAYS
 
     if scheduler is not None and backend is not Backend.dask:
         raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
@@ -433,6 +441,9 @@ def bench_control(
             raise typer.BadParameter(
                 f"{mode!r} is not one of {EXPLORATION_MODES}", param_hint="'--exploration'"
             )
+    for mode in replays or []:
+        if mode not in REPLAYS:
+            raise typer.BadParameter(f"{mode!r} is not one of {REPLAYS}", param_hint="'--replay'")
     from geoq.experiments.sac_baseline import BASELINES
 
     for name in baselines or []:
@@ -442,6 +453,8 @@ def bench_control(
             )
     base = _agent_config(config)
     configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
+    if replays:
+        configs = [dict(c, replay=r) for c in configs for r in replays]
     with _reported("bench-control", "finished cells are kept; rerun to resume"):
         from geoq.experiments.control import run_control_benchmark
 

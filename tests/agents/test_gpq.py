@@ -143,4 +143,4 @@ def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() ->
     none.train()
     np.testing.assert_array_equal(none.buffer.targets(), before)
     with pytest.raises(ValueError, match="replay must be one of"):
-        _agent(replay="graph")
+        _agent(replay="bogus")

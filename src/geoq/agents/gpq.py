@@ -43,6 +43,7 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, fields
 from os import PathLike
@@ -64,6 +65,7 @@ from geoq.agents.acquisition import (
 )
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.fitted_q import fitted_q_sweeps
+from geoq.agents.graph_replay import imagine_transitions
 from geoq.gp import SparseOnlineGP
 from geoq.kernels.geodesic import GraphKernel
 from geoq.learners.q_gp import KERNEL_NAMES, KernelName, QGPConfig, make_kernel
@@ -74,9 +76,8 @@ __all__ = ["EpisodeRecord", "GPQAgent", "GPQConfig"]
 
 Prior = Literal["midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
-Replay = Literal["uniform", "none"]
-#: Replay modes implemented so far (SPEC §5 also names "graph": the replay issue).
-REPLAYS: tuple[str, ...] = ("uniform", "none")
+Replay = Literal["uniform", "none", "graph"]
+REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
 
 _ARCHIVE_KIND = "GPQAgent"
 _ARCHIVE_VERSION = 1
@@ -140,7 +141,15 @@ class GPQConfig:
     replay: Replay = "uniform"
     """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
     all transitions alike); ``none``: no replay, the targets stay those computed
-    online when each step was taken and a phase only refits the posterior to them."""
+    online when each step was taken and a phase only refits the posterior to them;
+    ``graph``: ``uniform`` plus up to ``replay_budget`` transitions imagined by the
+    graph's dynamics model (:mod:`geoq.agents.graph_replay`) for the actions not
+    taken at the stored states of largest TD error."""
+    replay_budget: int = 2_000
+    """Largest number of imagined transitions per fitted-Q phase (``replay="graph"``)."""
+    replay_eps: float = 0.5
+    """JC12 eq. 2 threshold of the replay graph: two state-action pairs are linked when
+    their squared-exponential similarity in length-scale units exceeds it."""
     prior: Prior = "optimistic"
     """What the GP assumes of ``Q`` where it has no data (the standardisation
     ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
@@ -153,10 +162,7 @@ class GPQConfig:
         if self.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
         if self.replay not in REPLAYS:
-            raise ValueError(
-                f"replay must be one of {REPLAYS}, got {self.replay!r} (graph replay is not "
-                "implemented yet)"
-            )
+            raise ValueError(f"replay must be one of {REPLAYS}, got {self.replay!r}")
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if self.exploration not in EXPLORATION_MODES:
@@ -168,6 +174,9 @@ class GPQConfig:
         _check_int(self.train_every, "train_every", 1)
         _check_int(self.max_sweeps, "max_sweeps", 0)
         _check_int(self.window, "window", 1)
+        _check_int(self.replay_budget, "replay_budget", 0)
+        if not (isinstance(self.replay_eps, int | float) and 0.0 < self.replay_eps < 1.0):
+            raise ValueError(f"replay_eps must be in (0, 1), got {self.replay_eps!r}")
         if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma < 1.0):
             raise ValueError(f"gamma must be in [0, 1), got {self.gamma!r}")
         for name in ("beta", "action_noise"):
@@ -319,6 +328,8 @@ class GPQAgent:
         self.num_timesteps = 0
         self.episodes: list[EpisodeRecord] = []
         self.fitted_q_sweeps: list[int] = []
+        self.imagined_counts: list[int] = []
+        self.train_seconds = 0.0
 
     # ------------------------------------------------------------------ set-up
     def _lengthscale(self) -> float | tuple[float, ...]:
@@ -487,9 +498,19 @@ class GPQAgent:
             bar.close()
         return self
 
-    @single_blas_thread
     def train(self) -> int:
-        """One fitted-Q phase on the stored transitions; returns the number of sweeps."""
+        """One fitted-Q phase on the stored transitions; returns the number of sweeps.
+
+        Its wall time is added to :attr:`train_seconds` (the compute cost of replay).
+        """
+        t0 = time.perf_counter()
+        try:
+            return self._train()
+        finally:
+            self.train_seconds += time.perf_counter() - t0
+
+    @single_blas_thread
+    def _train(self) -> int:
         c = self.config
         S, A, R, S2, term = self.buffer.arrays(last=c.window)
         if len(R) == 0:
@@ -499,6 +520,9 @@ class GPQAgent:
         gp = self.gp
         bounds = self.value_bounds()
         y0 = np.clip(self.buffer.targets(last=N), *bounds)  # warm start: the last targets
+        if c.replay == "graph" and gp.n_bv > 0:
+            S, A, R, S2, term, y0 = self._add_imagined(S, A, R, S2, term, y0, bounds)
+            X = self.inputs(S, A)
         if gp.kernel.tracks_basis:  # K_BV follows a graph: factor the current one afresh
             gp.refit(X, (y0 - self.y_mean) / self.y_scale)
         m = gp.n_bv
@@ -519,11 +543,54 @@ class GPQAgent:
             tol=c.sweep_tol * self.y_scale, bounds=bounds,
         )  # fmt: skip
         y = result.targets
-        self.buffer.set_targets(y)
-        self.y_mean, self.y_scale = self._standardisation(y, bounds)
+        self.buffer.set_targets(y[:N])
+        self.y_mean, self.y_scale = self._standardisation(y[:N], bounds)
         gp.refit(X, (y - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)
         return result.sweeps
+
+    def _add_imagined(
+        self,
+        S: FloatArray,
+        A: FloatArray,
+        R: FloatArray,
+        S2: FloatArray,
+        term: np.ndarray,
+        y0: FloatArray,
+        bounds: tuple[float, float],
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray, FloatArray]:
+        """The stored transitions followed by the graph model's imagined ones (replay="graph").
+
+        Sources are ranked by the absolute TD error of their stored target under the
+        current posterior, ``|r + gamma (1 - term) max_k Q(s', a_k) - y|``; the imagined
+        transitions start from the posterior mean at their inputs.
+        """
+        c = self.config
+        mean_next, _ = self.q_candidates(S2)
+        td = R + c.gamma * (1.0 - term) * mean_next.max(axis=1) - y0
+        units = np.asarray(self.scaling.scale) * np.broadcast_to(
+            np.asarray(self._lengthscale(), dtype=np.float64), (self.scaling.dim,)
+        )
+        space = self.env.observation_space if self.env is not None else None
+        low = high = None
+        if isinstance(space, spaces.Box):
+            low = np.where(np.isfinite(space.low), space.low, -np.inf).astype(np.float64)
+            high = np.where(np.isfinite(space.high), space.high, np.inf).astype(np.float64)
+        im = imagine_transitions(
+            S, A, R, S2, term, units=units, periods=np.asarray(self.scaling.periods),
+            candidates=self.candidates, priority=np.abs(td), budget=c.replay_budget,
+            eps=c.replay_eps, obs_low=low, obs_high=high,
+        )  # fmt: skip
+        self.imagined_counts.append(len(im))
+        if len(im) == 0:
+            return S, A, R, S2, term, y0
+        y_im = self.y_mean + self.y_scale * self.gp.predict(self.inputs(im.states, im.actions))
+        return (
+            np.vstack([S, im.states]), np.vstack([A, im.actions]),
+            np.concatenate([R, im.rewards]), np.vstack([S2, im.next_states]),
+            np.concatenate([term, im.terminated]),
+            np.concatenate([y0, np.clip(y_im, *bounds)]),
+        )  # fmt: skip
 
     def _standardisation(self, y: FloatArray, bounds: tuple[float, float]) -> tuple[float, float]:
         """``(y_mean, y_scale)`` for the configured prior (see :attr:`GPQConfig.prior`)."""
@@ -550,6 +617,8 @@ class GPQAgent:
             "reward_range": list(self.reward_range),
             "num_timesteps": self.num_timesteps,
             "fitted_q_sweeps": self.fitted_q_sweeps,
+            "imagined_counts": self.imagined_counts,
+            "train_seconds": self.train_seconds,
         }
         arrays["meta"] = np.asarray(json.dumps(meta, allow_nan=True))
         arrays["episodes"] = np.array(
@@ -615,6 +684,8 @@ class GPQAgent:
         agent.reward_range = (float(lo), float(hi))
         agent.num_timesteps = int(meta["num_timesteps"])
         agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
+        agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]
+        agent.train_seconds = float(meta.get("train_seconds", 0.0))
         agent.episodes = [
             EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes
         ]

@@ -253,6 +253,7 @@ def control_cell(cell: ControlCell) -> dict[str, Any]:
     row["train_timesteps"] = [e.timesteps for e in agent.episodes]
     row["train_return"] = [e.ret for e in agent.episodes]
     row["n_bv"] = agent.gp.n_bv
+    row["train_seconds_per_episode"] = agent.train_seconds / max(len(agent.episodes), 1)
     return row
 
 
@@ -307,12 +308,14 @@ def control_report(
         "default reset, checked at every checkpoint): median over seeds with a distribution-free "
         "95% interval (order statistics), `inf` = not reached within the budget. Final success "
         "rate and return (last checkpoint): mean with a Student-t 95% interval over seeds (the "
-        "success interval clipped to [0, 1]).",
+        "success interval clipped to [0, 1]). ms / step: wall time of learning per environment "
+        "step, everything included (median over seeds); the last column is the part spent in "
+        "the fitted-Q phases (with replay), per training episode.",
         "",
         *quoted,
         "| agent | seeds | steps to success (median [95%]) | reached | final success | "
-        "final return | ms / step |",
-        "|---|---|---|---|---|---|---|",
+        "final return | ms / step | fitted-Q + replay s / episode |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for label in labels:
         sel = [r for r in rows if r["label"] == label]
@@ -321,11 +324,13 @@ def control_report(
         final_s = mean_interval([r["eval_success"][-1] for r in sel])
         final_r = mean_interval([r["eval_return"][-1] for r in sel])
         ms = float(np.median([r["ms_per_step"] for r in sel]))
+        phases = [r["train_seconds_per_episode"] for r in sel if "train_seconds_per_episode" in r]
+        phase = f"{float(np.median(phases)):.2f}" if phases else "-"
         reached = sum(math.isfinite(s) for s in steps)
         lines.append(
             f"| {label} | {len(sel)} | {med:g} [{lo:g}, {hi:g}] | {reached}/{len(sel)} | "
             f"{final_s.mean:.2f} [{max(final_s.low, 0.0):.2f}, {min(final_s.high, 1.0):.2f}] | "
-            f"{final_r.mean:.1f} [{final_r.low:.1f}, {final_r.high:.1f}] | {ms:.2f} |"
+            f"{final_r.mean:.1f} [{final_r.low:.1f}, {final_r.high:.1f}] | {ms:.2f} | {phase} |"
         )
     lines += [
         "",

@@ -39,8 +39,8 @@ measures the jump by Monte Carlo.
 Every policy here maps a batch of states ``[N, 2]`` and a
 :class:`numpy.random.Generator` to actions: ``[N]`` torques for the pendulum,
 ``[N, 2]`` moves for the two rooms (:class:`TwoRoomsWaypointPolicy`). This is
-the :class:`Policy` protocol used by :mod:`geoq.rollouts` and
-:mod:`geoq.evaluation`.
+the :class:`Policy` protocol; :mod:`geoq.rollouts` and :mod:`geoq.evaluation`
+take its scalar-action form (the pendulum's) today.
 """
 
 from __future__ import annotations

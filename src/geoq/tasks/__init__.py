@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 
-from geoq.envs import PENDULUM_SWING_UP_ID
+from geoq.envs import PENDULUM_SWING_UP_ID, TWO_ROOMS_ID
 from geoq.learners.scaling import InputScaling
 
 __all__ = ["KNOWN_TASKS", "TaskInfo", "box_scaling", "task_info"]
@@ -39,6 +39,7 @@ class TaskInfo:
 #: observes ``[cos, sin, omega]``: nothing in it wraps.
 KNOWN_TASKS: Mapping[str, TaskInfo] = {
     PENDULUM_SWING_UP_ID: TaskInfo(periods=(2.0 * np.pi, 0.0), names=("theta", "omega")),
+    TWO_ROOMS_ID: TaskInfo(periods=(0.0, 0.0), names=("x", "y")),
     "Pendulum-v1": TaskInfo(periods=(0.0, 0.0, 0.0), names=("cos", "sin", "omega")),
     "MountainCarContinuous-v0": TaskInfo(periods=(0.0, 0.0), names=("position", "velocity")),
 }

@@ -144,3 +144,40 @@ def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() ->
     np.testing.assert_array_equal(none.buffer.targets(), before)
     with pytest.raises(ValueError, match="replay must be one of"):
         _agent(replay="bogus")
+
+
+class _UnboundedPoint(PointToGoal):
+    """:class:`PointToGoal` whose observation space declares no bounds."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.observation_space = gymnasium.spaces.Box(-np.inf, np.inf, shape=(1,))
+
+
+def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Path) -> None:
+    # The warm-up states span about half the box: finer length-scales, more BVs.
+    agent = GPQAgent(_UnboundedPoint(), seed=0, gamma=0.9, max_bv=120, warmup_steps=60)
+    assert agent.scaling_pending
+    with pytest.raises(ValueError, match="infinite bounds.*warm-up"):
+        agent.predict(np.array([0.0]))
+    agent.learn(30)  # not enough to fix the scaling: still refused, nothing streamed
+    assert agent.scaling_pending and agent.gp.n_bv == 0
+    agent.learn(370)
+    assert not agent.scaling_pending
+    # The scale follows the states seen (rescaled as exploration widened them).
+    S, _, _, S2, _ = agent.buffer.arrays(last=None)
+    states = np.concatenate([S[:, 0], S2[:, 0]])
+    q05, q95 = np.quantile(states, [0.05, 0.95])
+    assert 0.5 * (q95 - q05) <= 1.5 * agent.scaling.scale[0]
+    assert agent.scaling.scale[1] == 1.0  # the action keeps its box's half-range
+    for start in (-1.0, -0.6, -0.2, 0.2):
+        optimal = steps_to_goal(lambda obs: np.array([1.0]), start)
+        learned = steps_to_goal(lambda obs: agent.predict(obs)[0], start)
+        assert learned <= optimal + 1, (start, learned, optimal)
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    loaded = GPQAgent.load(path, env=_UnboundedPoint())
+    assert loaded.scaling == agent.scaling and not loaded.scaling_pending
+    assert agent.rescales >= 2 and loaded.rescales == agent.rescales  # warm-up + growth
+    obs = np.linspace(-1, 1, 7)[:, None]
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])

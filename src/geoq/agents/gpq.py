@@ -70,7 +70,7 @@ from geoq.gp import SparseOnlineGP
 from geoq.kernels.geodesic import GraphKernel
 from geoq.learners.q_gp import KERNEL_NAMES, KernelName, QGPConfig, make_kernel
 from geoq.learners.scaling import InputScaling
-from geoq.tasks import box_scaling, task_info
+from geoq.tasks import TaskInfo, box_scaling, data_scaling, has_finite_bounds, task_info
 
 __all__ = ["EpisodeRecord", "GPQAgent", "GPQConfig"]
 
@@ -78,6 +78,9 @@ Prior = Literal["midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
+
+#: A data-driven input scale is refreshed when the states' spread outgrows it by this factor.
+RESCALE_FACTOR = 1.5
 
 _ARCHIVE_KIND = "GPQAgent"
 _ARCHIVE_VERSION = 1
@@ -145,6 +148,14 @@ class GPQConfig:
     ``graph``: ``uniform`` plus up to ``replay_budget`` transitions imagined by the
     graph's dynamics model (:mod:`geoq.agents.graph_replay`) for the actions not
     taken at the stored states of largest TD error."""
+    warmup_steps: int = 250
+    """Observation spaces with an infinite bound and no ``scaling=``: the first
+    ``warmup_steps`` steps take uniformly random actions, then the input scaling is
+    set from the states seen (:func:`geoq.tasks.data_scaling`) and learning starts
+    on them. As exploration widens, a fitted-Q phase that finds the states' spread
+    grown past ``RESCALE_FACTOR`` (1.5) x a scale rescales and rebuilds the GP from
+    the stored transitions (counted in ``GPQAgent.rescales``). Unused when every
+    bound is finite."""
     replay_budget: int = 2_000
     """Largest number of imagined transitions per fitted-Q phase (``replay="graph"``)."""
     replay_eps: float = 0.5
@@ -175,6 +186,7 @@ class GPQConfig:
         _check_int(self.max_sweeps, "max_sweeps", 0)
         _check_int(self.window, "window", 1)
         _check_int(self.replay_budget, "replay_budget", 0)
+        _check_int(self.warmup_steps, "warmup_steps", 1)
         if not (isinstance(self.replay_eps, int | float) and 0.0 < self.replay_eps < 1.0):
             raise ValueError(f"replay_eps must be in (0, 1), got {self.replay_eps!r}")
         if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma < 1.0):
@@ -304,7 +316,17 @@ class GPQAgent:
         self.action_high = act_space.high.astype(np.float64)
         self.env_id = self.env.spec.id if self.env.spec is not None else ""
         info = task_info(self.env, periods)
-        self.scaling = scaling if scaling is not None else box_scaling(obs_space, act_space, info)
+        #: True until ``warmup_steps`` steps have fixed a data-driven input scaling (an
+        #: observation space with infinite bounds and no ``scaling=``).
+        self.scaling_pending = scaling is None and not has_finite_bounds(obs_space)
+        #: Whether the scaling comes from data (it then follows the states seen).
+        self.data_scaled = self.scaling_pending
+        if scaling is not None:
+            self.scaling = scaling
+        elif self.scaling_pending:  # placeholder (never used on data): replaced after warm-up
+            self.scaling = data_scaling(np.zeros((1, self.obs_dim)), obs_space, act_space, info)
+        else:
+            self.scaling = box_scaling(obs_space, act_space, info)
         if self.scaling.dim != self.obs_dim + self.action_dim:
             raise ValueError(
                 f"scaling has {self.scaling.dim} dimensions; expected "
@@ -330,6 +352,7 @@ class GPQAgent:
         self.fitted_q_sweeps: list[int] = []
         self.imagined_counts: list[int] = []
         self.train_seconds = 0.0
+        self.rescales = 0
 
     # ------------------------------------------------------------------ set-up
     def _lengthscale(self) -> float | tuple[float, ...]:
@@ -369,6 +392,12 @@ class GPQAgent:
 
     def q_candidates(self, states: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Posterior mean and std of ``Q`` ``[n, K]`` at every state x candidate (one GP call)."""
+        if self.scaling_pending:
+            raise ValueError(
+                "the observation space has infinite bounds and the agent has not yet seen the "
+                f"{self.config.warmup_steps} warm-up steps that fix its input scaling: call "
+                "learn() first, or pass scaling= with a finite scale per dimension"
+            )
         mean, std = self.gp.predict(self._candidate_inputs(states), return_std=True)
         n = states.shape[0]
         return (self.y_mean + self.y_scale * mean).reshape(n, -1), (self.y_scale * std).reshape(
@@ -454,28 +483,40 @@ class GPQAgent:
             s, _ = self._check_obs(obs)
             if isinstance(self.gp.kernel, GraphKernel):
                 self.gp.kernel.start_rollout()
-            mean, std = self.q_candidates(s)
+            mean, std = self._q_or_none(s)
             ep_return, success = 0.0, float("nan")
             while done_steps < total_timesteps:
-                a = self._act(mean, std, c.exploration)  # [1, d_a]
+                if mean is None or std is None:  # warm-up: uniformly random actions
+                    a = self.rng.uniform(self.action_low, self.action_high)[None, :]
+                else:
+                    a = self._act(mean, std, c.exploration)  # [1, d_a]
                 obs2, r, terminated, truncated, info = env.step(a[0].astype(env.action_space.dtype))
                 r = float(r)
                 if not np.isfinite(r):
                     raise ValueError(f"the env returned a non-finite reward {r!r}")
                 s2, _ = self._check_obs(obs2)
                 self.reward_range = (min(self.reward_range[0], r), max(self.reward_range[1], r))
-                mean, std = self.q_candidates(s2)
-                y = r + (0.0 if terminated else c.gamma * float(np.max(mean)))
-                y = float(np.clip(y, *self.value_bounds()))
+                mean, std = self._q_or_none(s2)
+                q_next = 0.0 if mean is None or terminated else float(np.max(mean))
+                y = float(
+                    np.clip(r + (0.0 if terminated else c.gamma * q_next), *self.value_bounds())
+                )
                 self.buffer.add(s[0], a[0], r, s2[0], bool(terminated), target=y)
-                self.gp.update(self.inputs(s, a)[0], (y - self.y_mean) / self.y_scale)
+                if self.scaling_pending:
+                    if len(self.buffer) >= c.warmup_steps:
+                        self._finish_warmup()
+                        mean, std = self.q_candidates(s2)
+                else:
+                    self.gp.update(self.inputs(s, a)[0], (y - self.y_mean) / self.y_scale)
                 self.num_timesteps += 1
                 done_steps += 1
                 ep_return += r
                 if bar is not None:
                     bar.update(1)
                 episode_over = terminated or truncated
-                if self.num_timesteps % c.train_every == 0 or episode_over:
+                if (self.num_timesteps % c.train_every == 0 or episode_over) and (
+                    not self.scaling_pending
+                ):
                     self.train()
                     if not episode_over:
                         mean, std = self.q_candidates(s2)
@@ -490,20 +531,68 @@ class GPQAgent:
                         stop = True
                     break
                 s = s2
-        if len(self.buffer) and (
-            not self.episodes or self.episodes[-1].timesteps != self.num_timesteps
+        if (
+            len(self.buffer)
+            and not self.scaling_pending
+            and (not self.episodes or self.episodes[-1].timesteps != self.num_timesteps)
         ):
             self.train()
         if bar is not None:
             bar.close()
         return self
 
+    def _q_or_none(self, states: FloatArray) -> tuple[FloatArray | None, FloatArray | None]:
+        """:meth:`q_candidates`, or ``(None, None)`` while the input scaling is pending."""
+        return (None, None) if self.scaling_pending else self.q_candidates(states)
+
+    def _finish_warmup(self) -> None:
+        """Fix the input scaling from the warm-up's states and start learning on them."""
+        self._rescale_from_data()
+        self.scaling_pending = False
+        self.train()
+
+    def _data_scaling(self) -> InputScaling:
+        env = self.env
+        if env is None:
+            raise RuntimeError("a data-driven scaling needs the env's spaces")
+        obs_space, act_space = _check_spaces(env)
+        S, _, _, S2, _ = self.buffer.arrays(last=self.config.window)
+        d_s = self.obs_dim
+        info = TaskInfo(periods=self.scaling.periods[:d_s], names=self.scaling.names[:d_s])
+        return data_scaling(np.vstack([S, S2]), obs_space, act_space, info)
+
+    def _rescale_from_data(self) -> None:
+        """Scale inputs by the states seen, then stream the stored transitions into a new GP.
+
+        Each transition enters with its current target (the warm-up's: its reward).
+        """
+        self.scaling = self._data_scaling()
+        self.gp = self._new_gp()
+        S, A, _, S2, _ = self.buffer.arrays(last=self.config.window)
+        y = self.buffer.targets(last=self.config.window)
+        graph = isinstance(self.gp.kernel, GraphKernel)
+        X = self.inputs(S, A)
+        for i in range(len(y)):
+            if graph and (i == 0 or not np.array_equal(S[i], S2[i - 1])):
+                self.gp.kernel.start_rollout()  # type: ignore[attr-defined]
+            self.gp.update(X[i], (y[i] - self.y_mean) / self.y_scale)
+        self.rescales += 1
+
+    def _spread_outgrew_scaling(self) -> bool:
+        """A data-driven scale is refreshed once the states' spread outgrows it by 1.5x."""
+        new = np.asarray(self._data_scaling().scale)
+        return bool(np.any(new > RESCALE_FACTOR * np.asarray(self.scaling.scale)))
+
     def train(self) -> int:
         """One fitted-Q phase on the stored transitions; returns the number of sweeps.
 
         Its wall time is added to :attr:`train_seconds` (the compute cost of replay).
         """
+        if self.scaling_pending:
+            return 0
         t0 = time.perf_counter()
+        if self.data_scaled and self.env is not None and self._spread_outgrew_scaling():
+            self._rescale_from_data()
         try:
             return self._train()
         finally:
@@ -619,6 +708,9 @@ class GPQAgent:
             "fitted_q_sweeps": self.fitted_q_sweeps,
             "imagined_counts": self.imagined_counts,
             "train_seconds": self.train_seconds,
+            "scaling_pending": self.scaling_pending,
+            "data_scaled": self.data_scaled,
+            "rescales": self.rescales,
         }
         arrays["meta"] = np.asarray(json.dumps(meta, allow_nan=True))
         arrays["episodes"] = np.array(
@@ -686,6 +778,9 @@ class GPQAgent:
         agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
         agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]
         agent.train_seconds = float(meta.get("train_seconds", 0.0))
+        agent.scaling_pending = bool(meta.get("scaling_pending", False))
+        agent.data_scaled = bool(meta.get("data_scaled", False))
+        agent.rescales = int(meta.get("rescales", 0))
         agent.episodes = [
             EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes
         ]

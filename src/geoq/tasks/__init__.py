@@ -14,10 +14,18 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 
+from geoq._typing import FloatArray
 from geoq.envs import PENDULUM_SWING_UP_ID, TWO_ROOMS_ID
 from geoq.learners.scaling import InputScaling
 
-__all__ = ["KNOWN_TASKS", "TaskInfo", "box_scaling", "task_info"]
+__all__ = [
+    "KNOWN_TASKS",
+    "TaskInfo",
+    "box_scaling",
+    "data_scaling",
+    "has_finite_bounds",
+    "task_info",
+]
 
 
 @dataclass(frozen=True)
@@ -89,3 +97,55 @@ def box_scaling(
     periods = (*info.periods, *(0.0,) * d_a)
     names = (*info.names, *(f"a{i}" for i in range(d_a)))
     return InputScaling(tuple(float(h) for h in half), periods, names)
+
+
+def has_finite_bounds(space: gymnasium.spaces.Box) -> bool:
+    """Whether every bound of ``space`` is finite (then :func:`box_scaling` applies)."""
+    return bool(np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high)))
+
+
+def data_scaling(
+    states: FloatArray,
+    obs_space: gymnasium.spaces.Box,
+    action_space: gymnasium.spaces.Box,
+    info: TaskInfo,
+    *,
+    quantile: float = 0.05,
+) -> InputScaling:
+    """Input scaling of ``[s, a]`` from observed states where the bounds are infinite.
+
+    Dimensions with finite bounds (every action dimension: the agent requires
+    them) keep :func:`box_scaling`'s half-range. An observation dimension with an
+    infinite bound gets half of the spread between the ``quantile`` and
+    ``1 - quantile`` quantiles of ``states`` ``[N, d_s]`` (robust to the odd far
+    state), or half its period if it is periodic; a dimension that never moved
+    gets 1.
+
+    Raises ``ValueError`` when ``states`` is empty or not finite: there is nothing
+    to scale by yet.
+    """
+    S = np.asarray(states, dtype=np.float64)
+    d_s = int(np.prod(obs_space.shape))
+    if S.ndim != 2 or S.shape[1] != d_s or S.shape[0] == 0:
+        raise ValueError(
+            f"data_scaling needs observed states of shape (N >= 1, {d_s}), got {S.shape}: "
+            "collect some steps first, or pass scaling= with a finite scale per dimension"
+        )
+    if not np.all(np.isfinite(S)):
+        raise ValueError("observed states contain NaN or inf")
+    lo = obs_space.low.ravel().astype(np.float64)
+    hi = obs_space.high.ravel().astype(np.float64)
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    q_lo, q_hi = np.quantile(S, [quantile, 1.0 - quantile], axis=0)
+    spread = 0.5 * (q_hi - q_lo)
+    periods = np.asarray(info.periods, dtype=np.float64)
+    data = np.where(periods > 0, 0.5 * periods, np.where(spread > 0, spread, 1.0))
+    half_box = np.where(finite, 0.5 * (hi - lo), 1.0)
+    obs_scale = np.where(finite & (half_box > 0), half_box, np.where(finite, 1.0, data))
+    clipped = gymnasium.spaces.Box(
+        -np.ones(d_s), np.ones(d_s), dtype=np.float64
+    )  # any finite box: only the action part of box_scaling is used below
+    base = box_scaling(clipped, action_space, info)
+    return InputScaling(
+        tuple(float(v) for v in obs_scale) + base.scale[d_s:], base.periods, base.names
+    )

@@ -15,9 +15,11 @@ import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent
 from geoq.cli import app
 from geoq.experiments.control import (
+    Evaluation,
     HandMadeController,
     control_report,
     evaluate_agent,
+    evaluation_success,
     run_control_benchmark,
     steps_to_success,
 )
@@ -115,3 +117,19 @@ def test_steps_to_success_and_report() -> None:
     assert math.isinf(steps_to_success(row, threshold=0.99))
     text = control_report([row, dict(row, eval_success=[0.0, 0.0, 0.0])], "T")
     assert "| k | 2 |" in text and "1/2" in text
+
+
+def test_success_of_tasks_without_is_success_is_a_mean_return_threshold() -> None:
+    nan = np.full(3, np.nan)
+    ev_hi = Evaluation(returns=np.array([95.0, 92.0, 85.0]), successes=nan)  # mean 90.67
+    ev_lo = Evaluation(returns=np.array([95.0, 92.0, 80.0]), successes=nan)  # mean 89
+    assert evaluation_success(ev_hi, "MountainCarContinuous-v0") == 1.0
+    assert evaluation_success(ev_lo, "MountainCarContinuous-v0") == 0.0
+    assert evaluation_success(
+        Evaluation(returns=np.array([-150.0, -170.0]), successes=np.full(2, np.nan)), "Pendulum-v1"
+    ) == 1.0  # fmt: skip
+    reported = Evaluation(returns=np.zeros(4), successes=np.array([1.0, 1.0, 0.0, 1.0]))
+    assert evaluation_success(reported, "geoq/TwoRooms-v0") == 0.75
+    assert math.isnan(evaluation_success(Evaluation(np.zeros(2), np.full(2, np.nan)), "X-v0"))
+    text = control_report([], "t", env_id="MountainCarContinuous-v0")
+    assert "mean return is >= 90" in text

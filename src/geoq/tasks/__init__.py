@@ -37,19 +37,28 @@ class TaskInfo:
     periods : wrap-around period of each observation dimension in raw units
         (``0`` = not periodic), ``[d_s]``.
     names : readable names of the observation dimensions (for reports).
+    success_return : for tasks whose env reports no ``info["is_success"]``: an
+        evaluation succeeds when its mean return reaches this (None: the env's own).
     """
 
     periods: tuple[float, ...]
     names: tuple[str, ...]
+    success_return: float | None = None
 
 
 #: Tasks whose periodic dimensions are known. Gymnasium's ``Pendulum-v1``
-#: observes ``[cos, sin, omega]``: nothing in it wraps.
+#: observes ``[cos, sin, omega]``: nothing in it wraps. Success thresholds of the
+#: Gymnasium tasks (mean evaluation return): MountainCarContinuous 90 (Gymnasium's
+#: own "solved" threshold), Pendulum-v1 -160 (rl-baselines3-zoo's SAC reaches -157).
 KNOWN_TASKS: Mapping[str, TaskInfo] = {
     PENDULUM_SWING_UP_ID: TaskInfo(periods=(2.0 * np.pi, 0.0), names=("theta", "omega")),
     TWO_ROOMS_ID: TaskInfo(periods=(0.0, 0.0), names=("x", "y")),
-    "Pendulum-v1": TaskInfo(periods=(0.0, 0.0, 0.0), names=("cos", "sin", "omega")),
-    "MountainCarContinuous-v0": TaskInfo(periods=(0.0, 0.0), names=("position", "velocity")),
+    "Pendulum-v1": TaskInfo(
+        periods=(0.0, 0.0, 0.0), names=("cos", "sin", "omega"), success_return=-160.0
+    ),
+    "MountainCarContinuous-v0": TaskInfo(
+        periods=(0.0, 0.0), names=("position", "velocity"), success_return=90.0
+    ),
 }
 
 
@@ -67,12 +76,13 @@ def task_info(env: gymnasium.Env, periods: Sequence[float] | None = None) -> Tas
     names = known.names if known is not None else tuple(f"s{i}" for i in range(d))
     if periods is None:
         return known if known is not None else TaskInfo(periods=(0.0,) * d, names=names)
+    success = known.success_return if known is not None else None
     p = tuple(float(v) for v in periods)
     if len(p) != d or not all(np.isfinite(v) and v >= 0 for v in p):
         raise ValueError(
             f"periods must give one finite period >= 0 per observation dimension ({d}), got {p}"
         )
-    return TaskInfo(periods=p, names=names)
+    return TaskInfo(periods=p, names=names, success_return=success)
 
 
 def box_scaling(

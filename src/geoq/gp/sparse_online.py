@@ -67,7 +67,13 @@ import scipy.linalg
 from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
+from geoq._validation import (
+    as_float_matrix,
+    as_float_point,
+    as_float_vector,
+    check_magnitude,
+    check_positive,
+)
 from geoq.gp._nb_delete import refresh_scores
 from geoq.gp._nb_linalg import mirror_lower
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
@@ -249,13 +255,19 @@ class SparseOnlineGP:
         warnings.warn(repair_warning(repairs), NumericalWarning, stacklevel=3)
 
     # ------------------------------------------------------------ validation
-    def _check_X(self, X: ArrayLike, name: str = "X") -> FloatArray:
-        return as_float_matrix(X, name, self._dim)
+    # update, fit, partial_fit, refit and predict accept the same inputs: finite real
+    # numbers of magnitude <= MAX_MAGNITUDE (squared distances and deletion scores stay
+    # inside float64), checked for the whole batch before anything changes.
+    def _check_X(self, X: ArrayLike, name: str = "X", dim: int | None = -1) -> FloatArray:
+        Xa = as_float_matrix(X, name, self._dim if dim == -1 else dim)
+        return check_magnitude(Xa, name, "rescale the inputs")
 
-    def _check_Xy(self, X: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        Xa = self._check_X(X)
+    def _check_Xy(
+        self, X: ArrayLike, y: ArrayLike, dim: int | None = -1
+    ) -> tuple[FloatArray, FloatArray]:
+        Xa = self._check_X(X, "X", dim)
         ya = as_float_vector(y, "y", Xa.shape[0])
-        return Xa, ya
+        return Xa, check_magnitude(ya, "y", "standardise the targets")
 
     # --------------------------------------------------------------- updates
     def update(self, x: ArrayLike, y: float) -> SparseOnlineGP:
@@ -264,21 +276,21 @@ class SparseOnlineGP:
         A rejected input (wrong shape, NaN/inf) raises ``ValueError`` and leaves
         the model unchanged.
         """
-        xa = as_float_point(x, "x", self._dim)
+        xa = check_magnitude(as_float_point(x, "x", self._dim), "x", "rescale the inputs")
         try:
             ya = np.asarray(y, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"y must be a finite number, got {y!r}") from exc
         if ya.ndim != 0 or not np.isfinite(ya):
             raise ValueError(f"y must be one finite number, got {y!r}")
+        check_magnitude(ya, "y", "standardise the targets")
         return self._stream(xa[None, :], ya.reshape(1))
 
     @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
         """Reset to the prior (empty BV set), then stream the rows of ``X`` [N, d], ``y`` [N]."""
         if self.kernel.input_dim is None:
-            Xa = as_float_matrix(X, "X")
-            ya = as_float_vector(y, "y", Xa.shape[0])
+            Xa, ya = self._check_Xy(X, y, dim=None)  # a new fit may change the dimension
             self._dim = None
         else:
             Xa, ya = self._check_Xy(X, y)

@@ -126,3 +126,13 @@ def test_resistance_kernel_far_from_every_node_is_finite() -> None:
     gp = SparseOnlineGP(ResistanceKernel(eps=0.3), noise=0.01, max_bv=20).fit(X, Y)
     mean, std = gp.predict(np.array([[1e100, -1e100], [0.0, 0.0]]), return_std=True)
     assert _finite(mean, std) and np.all(std >= 0)
+
+
+@pytest.mark.parametrize("variance", [1e-320, 1e-151, 1e151, 1.7e308])
+def test_kernel_variances_whose_products_leave_float64_are_refused(variance: float) -> None:
+    with pytest.raises(ValueError, match=r"variance \(amplitude\) must be in"):
+        SquaredExponential(1.0, variance=variance)
+    with pytest.raises(ValueError, match=r"variance \(amplitude\) must be in"):
+        GeodesicKernel(eps=0.3, amplitude=variance)
+    with pytest.raises(ValueError, match=r"variance \(amplitude\) must be in"):
+        ResistanceKernel(eps=0.3, amplitude=variance)

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import as_float_matrix, check_magnitude
+from geoq._validation import MAX_MAGNITUDE, as_float_matrix, check_magnitude
 
 __all__ = [
     "Distance",
@@ -234,6 +234,13 @@ class GaussianOfDistance(Kernel):
         v = float(variance)
         if not np.isfinite(v) or v <= 0.0:
             raise ValueError(f"variance must be a finite number > 0, got {variance!r}")
+        if not 1.0 / MAX_MAGNITUDE <= v <= MAX_MAGNITUDE:
+            # products of covariances (k^T C k, the noise floor) must stay normal floats
+            raise ValueError(
+                f"variance (amplitude) must be in [{1.0 / MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] "
+                f"(products of covariances overflow or underflow beyond), got {variance!r}: "
+                "standardise the targets"
+            )
         self.distance = distance
         self.variance = v
         self.input_dim = distance.input_dim

@@ -175,3 +175,77 @@ def test_console_script_entry_point() -> None:
     proc = subprocess.run([*cmd, "--help"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert "reproduce" in proc.stdout
+
+
+# -- issue 12, class 5: the whole --config is checked up front; --out "" is refused ---------
+@pytest.mark.parametrize(
+    ("config", "field"),
+    [
+        ('{"budgets": 5}', "budgets"),
+        ('{"learner": null}', "learner"),
+        ('{"learner": {"noize": 0.1}}', "noize"),
+        ('{"learner": {"noise": "0.1"}}', "learner.noise"),
+        ('{"learner": {"noise": -1}}', "learner.noise"),
+        ('{"learner": {"eps": 1.5}}', "learner.eps"),
+        ('{"learner": {"scaling": {"scale": [1]}}}', "learner.scaling"),
+        ('{"learner": {"lengthscale": [1, 2]}}', "learner.lengthscale"),
+        ('{"budgets": [5, 7.5]}', "budgets[1]"),
+        ('{"budgets": [5, 5]}', "budgets"),
+        ('{"budgets": [5, 100000]}', "budgets[1]"),
+        ('{"seeds": "3"}', "seeds"),
+        ('{"seeds": true}', "seeds"),
+        ('{"seeds": 1e400}', "seeds"),
+        ('{"seeds": 1000000000000000000000000000000}', "seeds"),
+        ('{"gamma": NaN}', "gamma"),
+        ('{"gamma": "0.9"}', "gamma"),
+        ('{"root_seed": -1}', "root_seed"),
+        ('{"graph_eps": [0.3, "a"]}', "graph_eps[1]"),
+        ('{"kernels": ["euclidean", "nearest", "nearest"]}', "kernels"),
+        ('{"variants": "faithful"}', "variants"),
+        ('{"eval_pairs": 100000}', "eval_pairs"),
+        ('{"scale": "paper"}', "scale"),
+        ("[1, 2]", "JSON object"),
+        ('{"seeds": ', "JSONDecodeError"),
+    ],
+)
+def test_every_config_field_is_checked_up_front(
+    tmp_path: Path, recorded: list[dict[str, Any]], config: str, field: str
+) -> None:
+    path = tmp_path / "c.json"
+    path.write_text(config)
+    result = _invoke("reproduce", "--out", str(tmp_path / "o"), "--config", str(path))
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [ln for ln in result.output.splitlines() if "Invalid value for '--config'" in ln]
+    assert len(lines) == 1 and field in lines[0], result.output
+    assert recorded == []  # nothing ran
+
+
+def test_a_config_naming_the_scale_it_runs_is_fine(
+    tmp_path: Path, recorded: list[dict[str, Any]]
+) -> None:
+    path = tmp_path / "c.json"
+    path.write_text('{"scale": "paper", "seeds": 2}')
+    result = _invoke("reproduce", "--out", str(tmp_path / "o"), "--scale", "paper", "--config",
+                     str(path))  # fmt: skip
+    assert result.exit_code == 0, result.output
+    assert recorded[0]["config"].scale == "paper" and recorded[0]["config"].seeds == 2
+
+
+@pytest.mark.parametrize("command", ["reproduce", "train", "bench-control"])
+def test_an_empty_out_is_refused(command: str, recorded: list[dict[str, Any]]) -> None:
+    result = _invoke(command, "--out", "")
+    assert result.exit_code == 2 and "'--out'" in result.output
+    assert recorded == []
+
+
+def test_jobs_above_the_core_count_are_capped_with_a_warning(
+    tmp_path: Path, recorded: list[dict[str, Any]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    result = _invoke("reproduce", "--out", str(tmp_path / "o"), "--jobs", "64")
+    assert result.exit_code == 0, result.output
+    assert recorded[0]["jobs"] == 2
+    assert "warning: --jobs=64 is more than the 2 core(s)" in result.output
+    result = _invoke("reproduce", "--out", str(tmp_path / "o"), "--jobs", "2")
+    assert recorded[1]["jobs"] == 2 and "warning" not in result.output

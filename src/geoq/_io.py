@@ -105,6 +105,43 @@ def save_archive(
     return atomic_write_bytes(path, buffer.getvalue())
 
 
+def _check_declared_sizes(p: Path) -> None:
+    """ArchiveError for an entry whose ``.npy`` header declares more data than it holds.
+
+    numpy allocates what the header declares before reading: a tampered shape would ask
+    for any amount of memory (``MemoryError``). The headers are read first, without
+    allocating, and each declared size is checked against the entry's size in the zip.
+    """
+    with zipfile.ZipFile(p) as zf:
+        for info in zf.infolist():
+            with zf.open(info) as fh:
+                try:
+                    major, _ = np.lib.format.read_magic(fh)
+                    read_header = (
+                        np.lib.format.read_array_header_1_0
+                        if major == 1
+                        else np.lib.format.read_array_header_2_0
+                    )
+                    shape, _, dtype = read_header(fh)
+                    header_end = fh.tell()
+                except (ValueError, OSError, EOFError) as exc:
+                    raise ArchiveError(
+                        f"{p}: entry {info.filename!r} has no valid array header ({exc}); "
+                        "the file is tampered or corrupt"
+                    ) from exc
+            count = 1
+            for n in shape:
+                count *= int(n)
+            declared = count * dtype.itemsize
+            held = info.file_size - header_end
+            if dtype.hasobject or declared > held:
+                raise ArchiveError(
+                    f"{p}: entry {info.filename!r} declares shape {shape} of {dtype} "
+                    f"({declared} bytes) but holds {held} bytes; the file is tampered or "
+                    "corrupt, save the model again"
+                )
+
+
 def load_archive(
     path: str | os.PathLike[str], kind: str, max_version: int
 ) -> tuple[int, dict[str, np.ndarray]]:
@@ -131,6 +168,7 @@ def load_archive(
                 f"{p}: cannot read it as a .npz archive (it does not start like a zip file); "
                 "the file is truncated or corrupt, or not a saved model"
             )
+        _check_declared_sizes(p)
         with np.load(p, allow_pickle=False) as npz:
             arrays = {name: npz[name] for name in npz.files}
     except ArchiveError:

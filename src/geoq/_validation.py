@@ -12,12 +12,19 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 
 __all__ = [
+    "MAX_MAGNITUDE",
     "as_float_matrix",
     "as_float_point",
     "as_float_vector",
+    "check_magnitude",
     "check_nonnegative",
     "check_positive",
 ]
+
+#: Largest magnitude of a GP input coordinate or target: squares of differences of such
+#: numbers (squared distances, deletion scores ``alpha^2``) stay inside float64
+#: (``1e150^2 = 1e300 < 1.8e308``). Real data are far below; standardise or rescale.
+MAX_MAGNITUDE = 1e150
 
 
 def _check_finite(arr: FloatArray, name: str) -> None:
@@ -88,6 +95,21 @@ def as_float_point(x: ArrayLike, name: str = "x", dim: int | None = None) -> Flo
     if dim is not None and arr.shape[0] != dim:
         raise ValueError(f"{name} has shape {arr.shape}; expected ({dim},)")
     _check_finite(arr, name)
+    return arr
+
+
+def check_magnitude(arr: FloatArray, name: str, what: str) -> FloatArray:
+    """``arr`` (finite) if every ``|value| <= MAX_MAGNITUDE``, else a ``ValueError``.
+
+    ``what`` says what to do, e.g. ``"standardise them"``: past the bound squares of
+    differences overflow float64 and results would be NaN or inf.
+    """
+    if arr.size and float(np.max(np.abs(arr))) > MAX_MAGNITUDE:
+        raise ValueError(
+            f"{name} must be below {MAX_MAGNITUDE:g} in magnitude (got "
+            f"{float(np.max(np.abs(arr))):.3g}; squares of such numbers overflow float64): "
+            f"{what}"
+        )
     return arr
 
 

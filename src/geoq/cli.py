@@ -222,8 +222,8 @@ def reproduce(
         )
     if scheduler is not None and not scheduler.strip():
         raise typer.BadParameter("the scheduler address is empty", param_hint="'--scheduler'")
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    _check_out(out)
+    jobs = _capped_jobs(jobs, scheduler)
 
     kwargs: dict[str, Any] = {
         "out": out,
@@ -243,7 +243,9 @@ def reproduce(
         try:
             overrides = json.loads(config.read_text())
             kwargs["config"] = config_with_overrides(config_for_scale(scale.value, seed), overrides)
-        except ValueError as exc:  # JSONDecodeError is a ValueError
+        except (ValueError, TypeError, OSError, RecursionError) as exc:
+            # JSONDecodeError and UnicodeDecodeError are ValueErrors; every field is checked
+            # here (types, ranges, unknown keys at every level), before anything runs.
             raise typer.BadParameter(_one_line(exc), param_hint="'--config'") from exc
     try:
         from geoq.experiments.reproduce import reproduce as run_reproduce
@@ -260,6 +262,29 @@ def reproduce(
         typer.echo(f"geoq reproduce: error: {_one_line(exc)}", err=True)
         raise typer.Exit(1) from exc
     typer.echo(f"geoq reproduce: done; results in {out}")
+
+
+def _check_out(out: Path) -> None:
+    """Usage errors for an output directory that is empty (the current one) or a file."""
+    if str(out).strip() in ("", "."):
+        raise typer.BadParameter(
+            "give an output directory (an empty --out would write into the current one)",
+            param_hint="'--out'",
+        )
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+
+
+def _capped_jobs(jobs: int, scheduler: str | None) -> int:
+    """``--jobs`` capped at the core count (one warning line on stderr), unless remote."""
+    if scheduler is not None:
+        return jobs
+    from geoq.experiments.sweep import cap_jobs
+
+    capped, message = cap_jobs(jobs)
+    if message is not None:
+        typer.echo(f"geoq: warning: --{message}", err=True)
+    return capped
 
 
 @contextmanager
@@ -333,10 +358,7 @@ def train(
     ] = True,
 ) -> None:
     """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
-    if str(out).strip() in ("", "."):
-        raise typer.BadParameter("give an output directory", param_hint="'--out'")
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    _check_out(out)
     overrides = _agent_config(config)
     with _reported("train", "nothing was written"):
         from geoq.experiments.control import train as run_train
@@ -451,6 +473,8 @@ def bench_control(
             raise typer.BadParameter(
                 f"{name!r} is not one of {BASELINES}", param_hint="'--baseline'"
             )
+    _check_out(out)
+    jobs = _capped_jobs(jobs, scheduler)
     base = _agent_config(config)
     configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
     if replays:

@@ -82,6 +82,29 @@ def test_rerun_resumes_and_gives_identical_files(run_dir, tmp_path):
     assert (tmp_path / "fig3.csv").read_bytes() == before["fig3.csv"]
 
 
+def test_a_copied_results_folder_resumes_without_recomputing(run_dir, tmp_path, monkeypatch):
+    """Cell keys hold no absolute path: a moved or copied folder keeps its finished cells."""
+    import shutil
+
+    import geoq.experiments.reproduce as repro
+
+    moved = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(run_dir, moved)
+    for path in (moved / "cells").rglob("*.json"):
+        assert str(run_dir) not in path.name
+        assert str(run_dir) not in json.dumps(json.loads(path.read_text())["spec"])
+
+    def must_not_run(cell):
+        raise AssertionError(f"recomputed {cell}")
+
+    monkeypatch.setattr(repro, "truth_cell", must_not_run)
+    monkeypatch.setattr(repro, "budget_cell", must_not_run)
+    monkeypatch.setattr(repro, "tune", must_not_run)
+    reproduce(moved, config=TINY, progress=False)
+    for name in ("fig3.csv", "fig3_all.csv", "fig3_variants.csv", "tuning.csv"):
+        assert (moved / name).read_bytes() == (run_dir / name).read_bytes(), name
+
+
 def test_plotting_functions_return_figures():
     from geoq.experiments.fig1 import GraphSnapshot
     from geoq.experiments.fig2 import ValueMaps

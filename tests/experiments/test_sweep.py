@@ -232,3 +232,13 @@ def test_progress_bar_counts_cells_on_stderr(
     assert "1/3" in captured.err  # the resumed run starts from the finished cell
     run_sweep(cells, cells_mod.random_cell, tmp_path / "s", progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_jobs_above_the_core_count_are_capped_with_a_warning(monkeypatch, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from geoq.experiments import sweep
+
+    monkeypatch.setattr(sweep.os, "cpu_count", lambda: 1)
+    with pytest.warns(UserWarning, match="jobs=8 is more than the 1 core"):
+        assert sweep._resolve_jobs(8) == 1
+    assert sweep._resolve_jobs(8, local=False) == 8  # a remote cluster decides
+    assert sweep._resolve_jobs(1) == 1

@@ -112,3 +112,42 @@ def test_same_seed_same_numbers():
         )
 
     np.testing.assert_array_equal(run(), run())
+
+
+# -- issue 12, class 8: a QGPConfig is checked when it is made, not when it first fits -------
+@pytest.mark.parametrize(
+    ("changes", "field"),
+    [
+        ({"max_bv": 0}, "max_bv"),
+        ({"max_bv": 2.5}, "max_bv"),
+        ({"max_bv": True}, "max_bv"),
+        ({"max_bv": 10**30}, "max_bv"),
+        ({"tol": 1.5}, "tol"),
+        ({"noise": 0.0}, "noise"),
+        ({"noise": "0.1"}, "noise"),
+        ({"noise": float("nan")}, "noise"),
+        ({"amplitude": -1.0}, "amplitude"),
+        ({"eps": 1.0}, "eps"),
+        ({"sigma_sp": float("inf")}, "sigma_sp"),
+        ({"sigma_se": 0}, "sigma_se"),
+        ({"resistance_lengthscale": -2}, "resistance_lengthscale"),
+        ({"lengthscale": (1.0, 2.0)}, "lengthscale"),
+        ({"lengthscale": 1e-320}, "lengthscale"),
+        ({"lengthscale": "1"}, "lengthscale"),
+        ({"standardize": "yes"}, "standardize"),
+        ({"scaling": None}, "scaling"),
+        ({"kernel": "rbf"}, "kernel"),
+    ],
+)
+def test_qgp_config_validates_at_construction(changes: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=field):
+        QGPConfig(**changes)
+    with pytest.raises(ValueError, match=field):
+        QGPConfig().replace(**changes)
+
+
+def test_qgp_config_round_trips_and_refuses_unknown_fields() -> None:
+    cfg = QGPConfig(lengthscale=(0.5, 1.0, 2.0), noise=0.1)
+    assert QGPConfig.from_dict(cfg.as_dict()) == cfg
+    with pytest.raises(ValueError, match="unknown learner field"):
+        QGPConfig.from_dict({**cfg.as_dict(), "noize": 1.0})

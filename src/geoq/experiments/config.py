@@ -9,9 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
+from numbers import Integral, Real
 from typing import Any, Literal
 
 from geoq.learners import KERNEL_NAMES, QGPConfig
+from geoq.learners.q_gp import MAX_BUDGET
 from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
 
 __all__ = [
@@ -126,35 +128,44 @@ class ReproConfig:
     """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
 
     def __post_init__(self) -> None:
-        counts = {
-            name: getattr(self, name)
-            for name in (
-                "seeds", "train_rollouts", "train_steps", "graph_rollouts", "graph_max_bv",
-                "eval_pairs", "eval_rollouts", "mc_rollouts", "map_grid", "map_mc_rollouts",
-                "map_max_bv", "td_episodes", "td_steps", "tune_max_bv", "tune_pairs",
-                "tune_mc_rollouts",
-            )
-        }  # fmt: skip
-        for name, value in counts.items():
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-        if not self.budgets or any(int(b) < 1 for b in self.budgets):
-            raise ValueError(f"budgets must be a non-empty list of integers >= 1: {self.budgets}")
-        if not 0.0 < self.gamma < 1.0:
+        """Types and ranges of every field, checked before anything runs."""
+        if not isinstance(self.scale, str) or not self.scale:
+            raise ValueError(f"scale must be a non-empty string, got {self.scale!r}")
+        _integer(self.root_seed, "root_seed", 0, 2**63 - 1)
+        for name in _COUNT_FIELDS:
+            high = MAX_BUDGET if name.endswith("max_bv") else _MAX_COUNT
+            _integer(getattr(self, name), name, 1, high)
+        _sequence(self.budgets, "budgets", lambda v, n: _integer(v, n, 1, MAX_BUDGET))
+        if isinstance(self.gamma, bool) or not isinstance(self.gamma, Real):
+            raise ValueError(f"gamma must be a number in (0, 1), got {self.gamma!r}")
+        if not 0.0 < float(self.gamma) < 1.0:
             raise ValueError(f"gamma must be in (0, 1), got {self.gamma!r}")
-        if not {"euclidean", "nearest"} <= set(self.kernels) or any(
-            k not in KERNEL_NAMES for k in self.kernels
-        ):
+        for name in ("graph_eps", "edge_count_eps"):
+            _sequence(getattr(self, name), name, _open_unit)
+        _sequence(self.kernels, "kernels", lambda v, n: _choice(v, n, KERNEL_NAMES))
+        if not {"euclidean", "nearest"} <= set(self.kernels):
             raise ValueError(
                 "kernels must include 'euclidean' (the baseline) and 'nearest' (Fig. 1) and "
-                f"come from {KERNEL_NAMES}, got {self.kernels}"
+                f"come from {KERNEL_NAMES}, got {list(self.kernels)}"
             )
-        if any(v not in VARIANTS for v in self.variants):
-            raise ValueError(f"variants must come from {sorted(VARIANTS)}, got {self.variants}")
-        for name in ("graph_eps", "edge_count_eps"):
-            values = getattr(self, name)
-            if not values or any(not 0.0 < e < 1.0 for e in values):
-                raise ValueError(f"{name} values must be in (0, 1), got {values}")
+        _sequence(
+            self.variants, "variants", lambda v, n: _choice(v, n, tuple(VARIANTS)), empty=True
+        )
+        if not isinstance(self.learner, QGPConfig):
+            raise ValueError(f"learner must be a QGPConfig, got {type(self.learner).__name__}")
+        # Values that would only fail minutes later, inside a sweep:
+        pool = self.eval_rollouts * self.train_steps
+        if self.eval_pairs > pool:
+            raise ValueError(
+                f"eval_pairs = {self.eval_pairs} exceeds the {pool} states of eval_rollouts x "
+                "train_steps it is drawn from"
+            )
+        tune_pool = max(2, self.eval_rollouts // 2) * self.train_steps
+        if self.tune_pairs > tune_pool:
+            raise ValueError(
+                f"tune_pairs = {self.tune_pairs} exceeds the {tune_pool} states of "
+                "max(2, eval_rollouts // 2) x train_steps it is drawn from"
+            )
 
     def replace(self, **changes: Any) -> ReproConfig:
         return replace(self, **changes)
@@ -168,6 +179,48 @@ class ReproConfig:
         out["kernels"] = list(self.kernels)
         out["variants"] = list(self.variants)
         return out
+
+
+_COUNT_FIELDS = (
+    "seeds", "train_rollouts", "train_steps", "graph_rollouts", "graph_max_bv",
+    "eval_pairs", "eval_rollouts", "mc_rollouts", "map_grid", "map_mc_rollouts",
+    "map_max_bv", "td_episodes", "td_steps", "tune_max_bv", "tune_pairs", "tune_mc_rollouts",
+)  # fmt: skip
+#: Largest count a configuration accepts (beyond it a run would not finish, or 10**30
+#: would overflow an array size minutes into the run).
+_MAX_COUNT = 1_000_000
+_SEQUENCE_FIELDS = ("budgets", "graph_eps", "edge_count_eps", "kernels", "variants")
+
+
+def _integer(value: Any, name: str, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    if not low <= int(value) <= high:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def _open_unit(value: Any, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, Real) or not 0.0 < float(value) < 1.0:
+        raise ValueError(f"{name} must be a number in (0, 1), got {value!r}")
+    return float(value)
+
+
+def _choice(value: Any, name: str, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+    return value
+
+
+def _sequence(values: Any, name: str, check: Any, empty: bool = False) -> None:
+    if not isinstance(values, tuple | list):
+        raise ValueError(f"{name} must be a list, got {values!r}")
+    if not values and not empty:
+        raise ValueError(f"{name} must not be empty")
+    for i, v in enumerate(values):
+        check(v, f"{name}[{i}]")
+    if len(set(values)) != len(values):
+        raise ValueError(f"{name} has duplicates: {list(values)}")
 
 
 SCALES: dict[str, ReproConfig] = {
@@ -208,11 +261,28 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
     if unknown:
         raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
     changes = dict(overrides)
-    for name in ("budgets", "graph_eps", "edge_count_eps", "kernels", "variants"):
+    if "scale" in changes and changes["scale"] != base.scale:
+        # The report and config.json name the scale: it must be the one that ran.
+        raise ValueError(
+            f"scale {changes['scale']!r} in the configuration differs from the preset "
+            f"{base.scale!r} it overrides; choose the preset with --scale"
+        )
+    for name in _SEQUENCE_FIELDS:
         if name in changes:
+            if not isinstance(changes[name], list | tuple):
+                raise ValueError(f"{name} must be a list, got {changes[name]!r}")
             changes[name] = tuple(changes[name])
     if "learner" in changes:
-        changes["learner"] = QGPConfig.from_dict({**base.learner.as_dict(), **changes["learner"]})
+        learner = changes["learner"]
+        if not isinstance(learner, Mapping):
+            raise ValueError(f"learner must be an object of learner fields, got {learner!r}")
+        try:
+            changes["learner"] = QGPConfig.from_dict({**base.learner.as_dict(), **learner})
+        except (ValueError, TypeError) as exc:
+            msg = str(exc)
+            names = {f.name for f in fields(QGPConfig)}
+            dot = msg.split(" ", 1)[0].split(".")[0] in names  # "noise must be ..."
+            raise ValueError(f"learner.{msg}" if dot else f"learner: {msg}") from None
     try:
         return base.replace(**changes)
     except TypeError as exc:

@@ -17,7 +17,7 @@ parallel, one file per finished cell):
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -130,7 +130,8 @@ class BudgetCell:
     train_rollouts: int
     train_steps: int
     learner: dict[str, Any]
-    truth_dir: str
+    truth_dir: str = field(metadata={"key": False})
+    """Where the truth cells are (not part of the cell's identity: folders are relocatable)."""
     truth: dict[str, Any]
     variant: str = "tuned"
     """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.config.VARIANTS`;

@@ -43,13 +43,22 @@ import hashlib
 import json
 import os
 import re
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from geoq._io import atomic_write_json
 
-__all__ = ["BACKENDS", "CELL_FORMAT", "cell_key", "cell_spec", "load_cell", "run_sweep"]
+__all__ = [
+    "BACKENDS",
+    "CELL_FORMAT",
+    "cap_jobs",
+    "cell_key",
+    "cell_spec",
+    "load_cell",
+    "run_sweep",
+]
 
 #: Version of the per-cell JSON file layout.
 CELL_FORMAT = 1
@@ -114,10 +123,16 @@ def cell_spec(cell: Any) -> dict[str, Any]:
 
     ``cell`` is a mapping with string keys or a dataclass instance
     (converted with :func:`dataclasses.asdict`); values must be
-    JSON-serialisable (numpy scalars are converted).
+    JSON-serialisable (numpy scalars are converted). A dataclass field declared
+    with ``field(metadata={"key": False})`` (e.g. the directory a cell reads its
+    inputs from) is left out: it does not change what the cell computes, and a
+    results folder moved elsewhere must keep its keys.
     """
     if dataclasses.is_dataclass(cell) and not isinstance(cell, type):
         raw: Any = dataclasses.asdict(cell)
+        for f in dataclasses.fields(cell):
+            if not f.metadata.get("key", True):
+                raw.pop(f.name)  # where to find things, not what is computed
     elif isinstance(cell, Mapping):
         raw = cell
     else:
@@ -200,10 +215,33 @@ def _call_cell(fn: Callable[[Any], Mapping[str, Any]], cell: Any, key: str) -> d
     return dict(json.loads(_canonical(_jsonable(row, f"row of cell {key}"))))
 
 
-def _resolve_jobs(jobs: int) -> int:
+def cap_jobs(jobs: int) -> tuple[int, str | None]:
+    """``(workers, warning)``: ``jobs`` capped at the number of cores, and why if it was.
+
+    More worker processes than cores only compete for them (each sweep cell is
+    single-threaded) and multiply the memory: ``jobs`` above ``os.cpu_count()`` is
+    capped there, with a message saying so.
+    """
+    cores = os.cpu_count() or 1
+    if jobs <= cores:
+        return jobs, None
+    return cores, (
+        f"jobs={jobs} is more than the {cores} core(s) of this machine; using {cores} worker "
+        "processes (more would only compete for the cores)"
+    )
+
+
+def _resolve_jobs(jobs: int, local: bool = True) -> int:
     if isinstance(jobs, bool) or not isinstance(jobs, int) or (jobs < 1 and jobs != -1):
         raise ValueError(f"jobs must be an integer >= 1 (or -1 for all cores), got {jobs!r}")
-    return (os.cpu_count() or 1) if jobs == -1 else jobs
+    if jobs == -1:
+        return os.cpu_count() or 1
+    if not local:  # a remote Dask cluster decides its own workers
+        return jobs
+    capped, message = cap_jobs(jobs)
+    if message is not None:
+        warnings.warn(message, UserWarning, stacklevel=3)
+    return capped
 
 
 def _iter_loky(
@@ -299,7 +337,8 @@ def run_sweep(
     store_dir : directory of the per-cell files ``<cell_key(cell)>.json``;
         created if needed. Reusing it resumes the sweep.
     jobs : worker processes. ``1`` runs serially in this process; ``-1`` uses
-        every core. In every mode, serial included, BLAS/OpenMP pools are
+        every core; more than ``os.cpu_count()`` is capped there with a ``UserWarning``
+        (:func:`cap_jobs`). In every mode, serial included, BLAS/OpenMP pools are
         limited to one thread while ``fn`` runs, so rows do not depend on the
         number of BLAS threads. With ``backend="dask"`` and no ``scheduler``, the number of
         LocalCluster workers (``1`` means one per core); ignored with a
@@ -331,7 +370,7 @@ def run_sweep(
             f"scheduler={scheduler!r} needs backend='dask' (got backend={backend!r}); "
             "pass backend='dask' or drop the scheduler"
         )
-    n_jobs = _resolve_jobs(jobs)
+    n_jobs = _resolve_jobs(jobs, local=scheduler is None)
     if not callable(fn):
         raise TypeError(f"fn must be callable, got {type(fn).__name__}")
 

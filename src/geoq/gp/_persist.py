@@ -17,6 +17,7 @@ from os import PathLike
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.linalg
 
 from geoq._io import ArchiveError
 from geoq.gp.diagnostics import COUNTER_NAMES, PYTHON_COUNTER_NAMES
@@ -121,6 +122,7 @@ def gp_from_arrays(
     gp._S[:m, :m] = S
     gp._alpha[:m] = get("score_alpha", (m,))
     gp._mdiag[:m] = get("score_mdiag", (m,))
+    _check_posterior(gp, path)
     counts = gp._counts
     counters = get("counters", None)
     n_old = _N_COUNTERS_V1 if version == 1 else len(COUNTER_NAMES)
@@ -143,6 +145,57 @@ def gp_from_arrays(
         counts.novclip_at_refit = counts.novelty_clipped_online
     counts.max_q_drift = float(get("max_q_drift", ()))
     return gp
+
+
+#: Tolerances of the load-time invariants: far above rounding and the jitter policy's
+#: largest jitter (1e-4 of the mean diagonal), far below any deliberate scaling.
+_GRAM_RTOL = 1e-3
+_WHITENED_TOL = 1e-4
+_ALPHA_RTOL = 1e-4
+
+
+def _check_posterior(gp: SparseOnlineGP, path: str | PathLike[str]) -> None:
+    """Cheap invariants of a loaded posterior (O(m^3), m = number of BVs); ArchiveError if not.
+
+    * a positive-definite kernel: ``R^T R`` reproduces ``K_BV`` of the stored basis
+      vectors (a graph kernel that is indefinite keeps a factor of a repaired or
+      earlier ``K_BV``: not checked);
+    * the whitened posterior covariance satisfies ``0 <= S <= I`` (any posterior does);
+    * the deletion scores' ``alpha`` satisfies ``R alpha = mu``.
+    """
+    m = gp._m
+    if m == 0:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):  # a tampered file: inf compares False
+        _check_posterior_arrays(gp, m, path)
+
+
+def _check_posterior_arrays(gp: SparseOnlineGP, m: int, path: str | PathLike[str]) -> None:
+    R, S, mu = gp._R[:m, :m], gp._S[:m, :m], gp._mu[:m]
+    if gp.kernel.positive_definite:
+        K = np.asarray(gp.kernel.basis_gram(gp._bv[:m]), dtype=np.float64)
+        scale = float(np.max(np.abs(np.diag(K)))) if np.all(np.isfinite(K)) else np.nan
+        err = float(np.max(np.abs(R.T @ R - K))) if np.isfinite(scale) else np.inf
+        if not err <= _GRAM_RTOL * scale:
+            raise ArchiveError(
+                f"{path}: cholesky_factor does not reproduce the kernel's K_BV of the stored "
+                f"basis vectors (max error {err:.3g}, diagonal {scale:.3g}); tampered or "
+                "corrupt model"
+            )
+    w = scipy.linalg.eigvalsh(S, check_finite=False)
+    if not (w[0] >= -_WHITENED_TOL and w[-1] <= 1.0 + _WHITENED_TOL):
+        raise ArchiveError(
+            f"{path}: the whitened posterior covariance S has eigenvalues in "
+            f"[{w[0]:.3g}, {w[-1]:.3g}], outside [0, 1] (no posterior has them); tampered or "
+            "corrupt model"
+        )
+    residual = float(np.linalg.norm(R @ gp._alpha[:m] - mu))
+    if not residual <= _ALPHA_RTOL * max(float(np.linalg.norm(mu)), 1e-300):
+        raise ArchiveError(
+            f"{path}: the posterior mean mu and the deletion scores' alpha disagree "
+            f"(|R alpha - mu| = {residual:.3g}, |mu| = {float(np.linalg.norm(mu)):.3g}); "
+            "tampered or corrupt model"
+        )
 
 
 def _archive_getter(

@@ -247,6 +247,16 @@ def _step(  # pragma: no cover - compiled
         if score < best_score:
             best_score = score
             best = a
+    if best < 0:
+        # Every score overflowed (alpha_i^2 > 1.8e308: huge targets over a tiny noise):
+        # the same order by log-scores, which cannot overflow.
+        for a in range(m1):
+            if mdiag[a] <= 0.0:
+                continue
+            score = 2.0 * np.log(abs(alpha[a])) - np.log(mdiag[a])
+            if best < 0 or score < best_score:
+                best_score = score
+                best = a
     if best < 0:  # no positive diag(Q + C): drifted scores; delete the newest point
         counters[_SCORECLIP] += 1
         best = m

@@ -55,8 +55,10 @@ Numerical health
 
 from __future__ import annotations
 
+import copy
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from numbers import Integral
 from os import PathLike
 from typing import Any, Literal, overload
@@ -67,7 +69,13 @@ import scipy.linalg
 from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_positive
+from geoq._validation import (
+    as_float_matrix,
+    as_float_point,
+    as_float_vector,
+    check_magnitude,
+    check_positive,
+)
 from geoq.gp._nb_delete import refresh_scores
 from geoq.gp._nb_linalg import mirror_lower
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
@@ -249,13 +257,19 @@ class SparseOnlineGP:
         warnings.warn(repair_warning(repairs), NumericalWarning, stacklevel=3)
 
     # ------------------------------------------------------------ validation
-    def _check_X(self, X: ArrayLike, name: str = "X") -> FloatArray:
-        return as_float_matrix(X, name, self._dim)
+    # update, fit, partial_fit, refit and predict accept the same inputs: finite real
+    # numbers of magnitude <= MAX_MAGNITUDE (squared distances and deletion scores stay
+    # inside float64), checked for the whole batch before anything changes.
+    def _check_X(self, X: ArrayLike, name: str = "X", dim: int | None = -1) -> FloatArray:
+        Xa = as_float_matrix(X, name, self._dim if dim == -1 else dim)
+        return check_magnitude(Xa, name, "rescale the inputs")
 
-    def _check_Xy(self, X: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        Xa = self._check_X(X)
+    def _check_Xy(
+        self, X: ArrayLike, y: ArrayLike, dim: int | None = -1
+    ) -> tuple[FloatArray, FloatArray]:
+        Xa = self._check_X(X, "X", dim)
         ya = as_float_vector(y, "y", Xa.shape[0])
-        return Xa, ya
+        return Xa, check_magnitude(ya, "y", "standardise the targets")
 
     # --------------------------------------------------------------- updates
     def update(self, x: ArrayLike, y: float) -> SparseOnlineGP:
@@ -264,33 +278,80 @@ class SparseOnlineGP:
         A rejected input (wrong shape, NaN/inf) raises ``ValueError`` and leaves
         the model unchanged.
         """
-        xa = as_float_point(x, "x", self._dim)
+        xa = check_magnitude(as_float_point(x, "x", self._dim), "x", "rescale the inputs")
         try:
             ya = np.asarray(y, dtype=np.float64)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"y must be a finite number, got {y!r}") from exc
         if ya.ndim != 0 or not np.isfinite(ya):
             raise ValueError(f"y must be one finite number, got {y!r}")
-        return self._stream(xa[None, :], ya.reshape(1))
+        check_magnitude(ya, "y", "standardise the targets")
+        self._stream(xa[None, :], ya.reshape(1))
+        self._warn_once()
+        return self
 
     @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
-        """Reset to the prior (empty BV set), then stream the rows of ``X`` [N, d], ``y`` [N]."""
+        """Reset to the prior (empty BV set), then stream the rows of ``X`` [N, d], ``y`` [N].
+
+        All or nothing: the whole batch is validated first, and a failure part-way
+        through (e.g. the kernel returns NaN for some row, or Ctrl-C) restores the
+        model and its kernel to what they were before the call.
+        """
         if self.kernel.input_dim is None:
-            Xa = as_float_matrix(X, "X")
-            ya = as_float_vector(y, "y", Xa.shape[0])
-            self._dim = None
+            Xa, ya = self._check_Xy(X, y, dim=None)  # a new fit may change the dimension
         else:
             Xa, ya = self._check_Xy(X, y)
-        self._reset_state()
-        self.kernel.basis_cleared()
-        return self._stream(Xa, ya)
+        with self._all_or_nothing():
+            if self.kernel.input_dim is None:
+                self._dim = None
+            self._reset_state()
+            self.kernel.basis_cleared()
+            self._stream(Xa, ya)
+        self._warn_once()  # after the batch: a warning turned into an error undoes nothing
+        return self
 
     @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def partial_fit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
-        """Stream the rows of ``X`` [N, d], ``y`` [N] in order, without resetting."""
+        """Stream the rows of ``X`` [N, d], ``y`` [N] in order, without resetting.
+
+        All or nothing, as :meth:`fit`: either every row is applied or none is.
+        """
         Xa, ya = self._check_Xy(X, y)
-        return self._stream(Xa, ya)
+        if Xa.shape[0] == 0:
+            return self
+        with self._all_or_nothing():
+            self._stream(Xa, ya)
+        self._warn_once()
+        return self
+
+    #: Scratch buffers: not part of the model's state.
+    _SCRATCH = frozenset({"_T", "_kbuf", "_work", "kernel", "config"})
+
+    @contextmanager
+    def _all_or_nothing(self) -> Iterator[None]:
+        """Restore the model (and a basis-tracking kernel's graph) if the body raises.
+
+        The snapshot copies the state buffers (O(max_bv^2)) and, for a kernel that
+        follows the basis set, the kernel's state (its graph): cheap next to a batch
+        of updates; :meth:`update` (one row, the agents' per-step call) takes none.
+        """
+        state = {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._SCRATCH}
+        kernel = self.kernel
+        kernel_state = None
+        if kernel.tracks_basis:
+            kernel_state = copy.deepcopy({k: v for k, v in vars(kernel).items() if k != "_owner"})
+        try:
+            yield
+        except BaseException:
+            vars(self).update(state)
+            if kernel_state is not None:
+                owner = vars(kernel).get("_owner")
+                vars(kernel).clear()
+                vars(kernel).update(kernel_state)
+                if owner is not None:
+                    kernel._owner = owner
+            raise
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
         """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
@@ -303,9 +364,9 @@ class SparseOnlineGP:
         period = np.zeros(self._dim) if period_or_none is None else np.asarray(period_or_none)
         return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(variance)
 
-    def _stream(self, X: FloatArray, y: FloatArray) -> SparseOnlineGP:
+    def _stream(self, X: FloatArray, y: FloatArray) -> None:
         if X.shape[0] == 0:
-            return self
+            return
         self._set_dim(X.shape[1])
         fast = self._fast_kernel()
         if fast is None:
@@ -324,8 +385,6 @@ class SparseOnlineGP:
                 self._changes += changes
                 if self._changes >= self.resync_every:
                     self._resync_q()
-        self._warn_once()
-        return self
 
     def _stream_points(self, X: FloatArray, y: FloatArray) -> None:
         """Per-point path: kernel in Python, step compiled, hooks in between points.
@@ -485,10 +544,16 @@ class SparseOnlineGP:
         ``K_BV`` (``Q = K_BV^{-1}``). Returns ``self``.
         """
         Xa, ya = self._check_Xy(X, y)
+        with self._all_or_nothing():  # a failed refit changes nothing, counters included
+            self._refit(Xa, ya)
+        self._warn_once()
+        return self
+
+    def _refit(self, Xa: FloatArray, ya: FloatArray) -> None:
         m = self._m
-        self._counts.python["refits"] += 1
         if m == 0:
-            return self
+            self._counts.python["refits"] += 1
+            return
         R = self._factor_gram()  # [m, m] upper
         Kbx = np.asarray(self.kernel.to_basis(Xa, self._bv[:m]), dtype=np.float64).T  # [m, N]
         V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
@@ -504,8 +569,7 @@ class SparseOnlineGP:
         self._changes = 0
         self._counts.novclip_at_refit = self._counts.novelty_clipped_online  # raw features now
         self._refresh_scores(record_drift=False)  # a new posterior: nothing to compare with
-        self._warn_once()
-        return self
+        self._counts.python["refits"] += 1  # counted once it has happened
 
     # ------------------------------------------------------------ prediction
     @overload

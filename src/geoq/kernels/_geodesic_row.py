@@ -128,7 +128,8 @@ def interpolated_row_prepare(
     """Eq. 5 for one point, first stage: ``r2`` [n] and the exponents of the weights.
 
     Returns the nearest node ``a`` (lowest index among ties) if ``x`` is not on it,
-    ``-2 - a`` if it is (``r2[a] == 0``), ``-1`` if ``BV[:n]`` is not the node set.
+    ``-2 - a`` if it is (``r2[a] == 0``), ``-1`` if ``BV[:n]`` is not the node set or
+    ``r2[a] / two_sigma_se`` overflows (the general path's far-point branch applies).
     Off the nodes, with ``z = r2 / two_sigma_se``: ``log_rel = z[a] - z`` and
     ``arg`` = ``log_rel`` (``normalize``) or ``-z``; the weights are ``exp(arg)``.
     """
@@ -138,6 +139,8 @@ def interpolated_row_prepare(
     if r2[a] == 0.0:
         return -2 - a
     zmin = r2[a] / two_sigma_se
+    if not np.isfinite(zmin):  # far from every node: the general path handles the overflow
+        return -1
     for j in range(n):
         z = r2[j] / two_sigma_se
         lr = zmin - z

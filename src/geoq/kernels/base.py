@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import as_float_matrix
+from geoq._validation import MAX_MAGNITUDE, as_float_matrix, check_magnitude
 
 __all__ = [
     "Distance",
@@ -41,6 +41,11 @@ SEParameters = tuple[float | FloatArray, FloatArray | None, float]
 
 _KERNELS: dict[str, type[Kernel]] = {}
 _DISTANCES: dict[str, type[Distance]] = {}
+
+
+def _check_inputs(X: ArrayLike, name: str, dim: int | None) -> FloatArray:
+    """Finite ``[n, dim]`` inputs of magnitude <= ``MAX_MAGNITUDE`` (what the GPs accept)."""
+    return check_magnitude(as_float_matrix(X, name, dim), name, "rescale the inputs")
 
 
 class Distance(ABC):
@@ -151,14 +156,13 @@ class Kernel(ABC):
 
         ``k(X)`` is ``k(X, X)``.
         """
-        Xa = as_float_matrix(X, "X", self.input_dim)
-        Ya = Xa if Y is None else as_float_matrix(Y, "Y", Xa.shape[1])
+        Xa = _check_inputs(X, "X", self.input_dim)
+        Ya = Xa if Y is None else _check_inputs(Y, "Y", Xa.shape[1])
         return self._matrix(Xa, Ya)
 
     def diag(self, X: ArrayLike) -> FloatArray:
         """``k(x_i, x_i)`` for every row of ``X`` [n, d] -> [n]."""
-        Xa = as_float_matrix(X, "X", self.input_dim)
-        return self._diag(Xa)
+        return self._diag(_check_inputs(X, "X", self.input_dim))
 
     @abstractmethod
     def _matrix(self, X: FloatArray, Y: FloatArray) -> FloatArray:
@@ -230,6 +234,13 @@ class GaussianOfDistance(Kernel):
         v = float(variance)
         if not np.isfinite(v) or v <= 0.0:
             raise ValueError(f"variance must be a finite number > 0, got {variance!r}")
+        if not 1.0 / MAX_MAGNITUDE <= v <= MAX_MAGNITUDE:
+            # products of covariances (k^T C k, the noise floor) must stay normal floats
+            raise ValueError(
+                f"variance (amplitude) must be in [{1.0 / MAX_MAGNITUDE:g}, {MAX_MAGNITUDE:g}] "
+                f"(products of covariances overflow or underflow beyond), got {variance!r}: "
+                "standardise the targets"
+            )
         self.distance = distance
         self.variance = v
         self.input_dim = distance.input_dim

@@ -348,10 +348,20 @@ class GraphDistance(BasisGraphDistance):
         is ``z[0, argmin]`` (division by a positive constant is monotone after
         rounding), which spares a reduction.
         """
-        z = r2 / (2.0 * self.sigma_se)
-        zmin = z.min(axis=1, keepdims=True) if argmin < 0 else z[:, argmin : argmin + 1]
-        # log(weight / largest weight of the row); zmin - z == -(z - zmin) exactly
-        log_rel = zmin - z
+        with np.errstate(over="ignore", invalid="ignore"):  # far points: handled below
+            z = r2 / (2.0 * self.sigma_se)
+            zmin = z.min(axis=1, keepdims=True) if argmin < 0 else z[:, argmin : argmin + 1]
+            # log(weight / largest weight of the row); zmin - z == -(z - zmin) exactly
+            log_rel = zmin - z
+        far = ~np.isfinite(zmin[:, 0])
+        if np.any(far):
+            # Far from every node, z overflows (tiny sigma_se or huge r2) and inf - inf is
+            # NaN: take the difference before the division, (r2min - r2) / (2 sigma_se) <= 0,
+            # 0 at the nearest node (the limit of the softmax). The unnormalised weights
+            # exp(-z) underflow to 0 there, as they should.
+            r2f = r2[far]
+            with np.errstate(over="ignore"):
+                log_rel[far] = (r2f.min(axis=1, keepdims=True) - r2f) / (2.0 * self.sigma_se)
         W = np.exp(log_rel) if self.normalize else np.exp(-z)
         W[log_rel < -_NEGLIGIBLE_LOG] = 0.0  # negligible next to the row's largest weight
         if self.normalize:

@@ -21,6 +21,13 @@ def as_scale_vector(value: ArrayLike, name: str) -> tuple[float | FloatArray, in
         )
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    with np.errstate(over="ignore", divide="ignore"):
+        reciprocal_overflows = not np.all(np.isfinite(1.0 / arr))
+    if reciprocal_overflows:  # subnormal: 0 * (1 / scale) would be NaN in every distance
+        raise ValueError(
+            f"{name} must be >= {1.0 / np.finfo(np.float64).max:.3g} (1/{name} overflows "
+            f"float64 below), got {value!r}; rescale the inputs instead"
+        )
     if arr.ndim == 0:
         return float(arr), None
     return arr.copy(), int(arr.shape[0])
@@ -49,7 +56,15 @@ class Euclidean(Distance):
 
     def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         if self.period is None:
-            return scipy.spatial.distance.cdist(X / self.scale, Y / self.scale, "sqeuclidean")
+            with np.errstate(over="ignore"):
+                Xs, Ys = X / self.scale, Y / self.scale
+            if np.isfinite(Xs).all() and np.isfinite(Ys).all():
+                return scipy.spatial.distance.cdist(Xs, Ys, "sqeuclidean")
+            # A tiny scale overflowed x / scale (inf - inf would be NaN): difference first;
+            # the squared distances are then inf where they overflow, never NaN.
+            with np.errstate(over="ignore"):
+                diff = (X[:, None, :] - Y[None, :, :]) / self.scale  # [n, m, d]
+                return np.einsum("ijk,ijk->ij", diff, diff)
         # Compiled: numpy's per-dimension passes cost ~0.7 ms for the [21, 200] of one agent
         # step, mostly call overhead; tests/test_geometry.py pins the bits to numpy's.
         scale = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (X.shape[1],))

@@ -25,8 +25,10 @@ Choices the paper leaves open, made here and recorded in :class:`QGPConfig`:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
+from numbers import Integral, Real
 from typing import Any, Literal
 
 import numpy as np
@@ -37,10 +39,22 @@ from geoq.gp import SparseOnlineGP
 from geoq.gp.pd_novelty import PDNoveltyOnlineGP
 from geoq.kernels import GeodesicKernel, Kernel, ResistanceKernel, SquaredExponential
 from geoq.kernels.geodesic import GraphKernel
+from geoq.kernels.stationary import as_scale_vector
 from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
 from geoq.rollouts import Rollout
 
-__all__ = ["KERNEL_NAMES", "PAPER_KERNELS", "GPQFunction", "QGPConfig", "make_kernel"]
+__all__ = [
+    "KERNEL_NAMES",
+    "MAX_BUDGET",
+    "PAPER_KERNELS",
+    "GPQFunction",
+    "QGPConfig",
+    "make_kernel",
+]
+
+#: Largest basis budget a configuration accepts: a GP keeps a few [max_bv, max_bv] float64
+#: matrices (5000: ~200 MB each).
+MAX_BUDGET = 5000
 
 #: The paper's three kernels (the values of ``kernel`` in ``fig3.csv``).
 PAPER_KERNELS: tuple[str, ...] = ("euclidean", "nearest", "interpolated")
@@ -98,10 +112,43 @@ class QGPConfig:
     """Per-dimension input scaling ``x = [s, a] / scale``."""
 
     def __post_init__(self) -> None:
+        """Every field is checked here, at construction (not when the learner first fits)."""
         if self.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
         if self.refit not in ("none", "episode", "end"):
             raise ValueError(f"refit must be 'none', 'episode' or 'end', got {self.refit!r}")
+        if isinstance(self.max_bv, bool) or not isinstance(self.max_bv, Integral):
+            raise ValueError(f"max_bv must be an integer >= 1, got {self.max_bv!r}")
+        if not 1 <= int(self.max_bv) <= MAX_BUDGET:
+            raise ValueError(
+                f"max_bv must be in [1, {MAX_BUDGET}] (a larger GP needs gigabytes), "
+                f"got {self.max_bv!r}"
+            )
+        _number(self.tol, "tol", low=0.0, high=1.0)
+        for name in ("noise", "amplitude", "sigma_sp", "sigma_se", "resistance_lengthscale"):
+            _number(getattr(self, name), name, low=0.0, low_open=True)
+        _number(self.eps, "eps", low=0.0, high=1.0, low_open=True, high_open=True)
+        for name in (
+            "normalize_weights", "attach_weights", "wrap_angle", "temporal_edges",
+            "pd_novelty", "standardize",
+        ):  # fmt: skip
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        if not isinstance(self.scaling, InputScaling):
+            raise ValueError(f"scaling must be an InputScaling, got {type(self.scaling).__name__}")
+        ls = self.lengthscale
+        values = ls if isinstance(ls, tuple | list) else (ls,)
+        if isinstance(ls, tuple | list) and len(ls) != self.scaling.dim:
+            raise ValueError(
+                f"lengthscale has {len(ls)} entries; expected one number or "
+                f"{self.scaling.dim} (one per input dimension)"
+            )
+        for v in values:
+            _number(v, "lengthscale", low=0.0, low_open=True)
+        try:
+            as_scale_vector(np.asarray(values, dtype=np.float64), "lengthscale")
+        except ValueError as exc:
+            raise ValueError(str(exc)) from None
 
     def replace(self, **changes: Any) -> QGPConfig:
         """A copy with some fields changed."""
@@ -109,12 +156,18 @@ class QGPConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> QGPConfig:
-        """Inverse of :meth:`as_dict`."""
+        """Inverse of :meth:`as_dict`; a ``ValueError`` naming the field for anything else."""
+        if not isinstance(data, dict):
+            raise ValueError(f"a learner configuration must be an object, got {data!r}")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown learner field(s) {unknown}; known: {sorted(known)}")
         d = dict(data)
-        sc = d.pop("scaling")
-        d["scaling"] = InputScaling(tuple(sc["scale"]), tuple(sc["periods"]), tuple(sc["names"]))
+        if "scaling" in d:
+            d["scaling"] = _scaling_from_dict(d["scaling"])
         if isinstance(d.get("lengthscale"), list):
-            d["lengthscale"] = tuple(float(v) for v in d["lengthscale"])
+            d["lengthscale"] = tuple(d["lengthscale"])
         return cls(**d)
 
     def as_dict(self) -> dict[str, Any]:
@@ -125,6 +178,50 @@ class QGPConfig:
             list(self.lengthscale) if isinstance(self.lengthscale, tuple) else self.lengthscale
         )
         return out
+
+
+def _scaling_from_dict(sc: Any) -> InputScaling:
+    keys = {"scale", "periods", "names"}
+    if not isinstance(sc, dict) or set(sc) != keys:
+        raise ValueError(
+            f"scaling must be an object with exactly the keys {sorted(keys)}, got {sc!r}"
+        )
+    for key in ("scale", "periods"):
+        if not isinstance(sc[key], list | tuple):
+            raise ValueError(f"scaling.{key} must be a list of numbers, got {sc[key]!r}")
+        for v in sc[key]:
+            _number(v, f"scaling.{key}")
+    if not isinstance(sc["names"], list | tuple) or not all(
+        isinstance(n, str) for n in sc["names"]
+    ):
+        raise ValueError(f"scaling.names must be a list of strings, got {sc['names']!r}")
+    try:
+        return InputScaling(tuple(sc["scale"]), tuple(sc["periods"]), tuple(sc["names"]))
+    except ValueError as exc:
+        raise ValueError(f"scaling: {exc}") from None
+
+
+def _number(
+    value: Any,
+    name: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """``value`` as a float if it is a finite real number (not a bool or a string) in range."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    below = low is not None and (v <= low if low_open else v < low)
+    above = high is not None and (v >= high if high_open else v > high)
+    if not math.isfinite(v) or below or above:
+        lo = "" if low is None else f"{'>' if low_open else '>='} {low:g}"
+        hi = "" if high is None else f"{'<' if high_open else '<='} {high:g}"
+        rng = " and ".join(p for p in (lo, hi) if p)
+        raise ValueError(f"{name} must be a finite number {rng}, got {value!r}")
+    return v
 
 
 def make_kernel(config: QGPConfig) -> Kernel:

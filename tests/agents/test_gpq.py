@@ -158,7 +158,7 @@ def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Pa
     # The warm-up states span about half the box: finer length-scales, more BVs.
     agent = GPQAgent(_UnboundedPoint(), seed=0, gamma=0.9, max_bv=120, warmup_steps=60)
     assert agent.scaling_pending
-    with pytest.raises(ValueError, match="infinite bounds.*warm-up"):
+    with pytest.raises(ValueError, match=r"infinite bounds.*warm-up"):
         agent.predict(np.array([0.0]))
     agent.learn(30)  # not enough to fix the scaling: still refused, nothing streamed
     assert agent.scaling_pending and agent.gp.n_bv == 0

@@ -283,3 +283,19 @@ def test_predict_routes_agree(noise: float) -> None:
     np.testing.assert_allclose(mean, mean_s, rtol=0, atol=1e-10)
     np.testing.assert_allclose(std**2, std_s**2, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(gp.predict(Xs), mean)
+
+
+def test_the_cheap_repair_check_agrees_with_the_repair_counts() -> None:
+    from geoq.gp.diagnostics import COUNTER_NAMES, PYTHON_COUNTER_NAMES, Counters
+
+    c = Counters()
+    assert not c.any_repair() and c.repairs() == {}
+    for name in COUNTER_NAMES + PYTHON_COUNTER_NAMES + ("predict_clipped", "predict_rescaled"):
+        c = Counters()
+        if name in COUNTER_NAMES:
+            c.step[COUNTER_NAMES.index(name)] = 3
+        elif name in PYTHON_COUNTER_NAMES:
+            c.python[name] = 3
+        else:
+            setattr(c, name, 3)
+        assert c.any_repair() == bool(c.repairs()), name

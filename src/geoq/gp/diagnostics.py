@@ -138,6 +138,14 @@ class Counters:
         counts["max_q_drift"] = self.max_q_drift
         return OnlineDiagnostics(**counts)
 
+    def any_repair(self) -> bool:
+        """Whether any repair was counted (cheap: checked after every update and predict)."""
+        return bool(
+            self.step[_VARCLIP] or self.step[_NOVCLIP] or self.step[_SCORECLIP]
+            or self.step[_NOISEFLOOR] or self.predict_clipped or self.predict_rescaled
+            or self.python["jitter_events"] or self.python["eig_clips"]
+        )  # fmt: skip
+
     def repairs(self) -> dict[str, int]:
         """The non-zero repair counts, by name."""
         d = self.snapshot()

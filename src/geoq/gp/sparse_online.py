@@ -248,7 +248,7 @@ class SparseOnlineGP:
         return self._counts.snapshot()
 
     def _warn_once(self) -> None:
-        if self._counts.warned:
+        if self._counts.warned or not self._counts.any_repair():
             return
         repairs = self._counts.repairs()
         if not repairs:

@@ -27,8 +27,11 @@ Rewards are clipped to the range observed; next states to the observation box.
 
 **What is replayed.** For stored states ``s_i`` the agent imagines the
 outcome of the candidate actions it did *not* take; the imagined transitions
-join the stored ones in the fitted-Q phase (their targets bootstrap like any
-other, :mod:`geoq.agents.fitted_q`) and in the DTC refit. They are drawn
+join the stored ones in the fitted-Q sweeps (their targets bootstrap like any
+other, :mod:`geoq.agents.fitted_q`), so the stored transitions bootstrap from a
+``Q`` that knows what the untried actions at their next states do; the
+posterior the agent then acts with is refit to the stored transitions only,
+keeping the optimism that drives its exploration. They are drawn
 afresh every phase (the model improves as the graph grows), within a budget
 of ``budget`` transitions. Sources are taken in decreasing ``priority``,
 prioritised-sweeping style (Moore & Atkeson 1993): the agent passes the

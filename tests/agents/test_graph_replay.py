@@ -169,3 +169,19 @@ def test_graph_replay_is_reproducible_and_never_moves_predict_without_learn() ->
     np.testing.assert_array_equal(a.buffer.targets(), b.buffer.targets())
     assert np.all(np.isfinite(a.buffer.targets()))
     np.testing.assert_array_equal(a.predict(obs)[0], first)
+
+
+@pytest.mark.parametrize("kernel", ["nearest", "interpolated", "resistance"])
+def test_graph_replay_runs_with_the_graph_kernels(kernel: str) -> None:
+    agent = GPQAgent(
+        PointToGoal(),
+        kernel=kernel,
+        seed=1,
+        gamma=0.9,
+        max_bv=20,
+        replay="graph",  # type: ignore[arg-type]
+    ).learn(80)
+    assert max(agent.imagined_counts) > 0
+    assert np.all(np.isfinite(agent.buffer.targets()))
+    actions, _ = agent.predict(np.linspace(-1, 1, 5)[:, None])
+    assert np.all(np.abs(actions) <= 1.0)

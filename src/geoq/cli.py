@@ -454,7 +454,7 @@ def bench_control(
 ) -> None:
     """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
     from geoq.agents.acquisition import EXPLORATION_MODES
-    from geoq.agents.gpq import REPLAYS
+    from geoq.agents.config import REPLAYS
 
     if scheduler is not None and backend is not Backend.dask:
         raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")

@@ -1,12 +1,15 @@
-"""The agent's memory: transitions ``(s, a, r, s', terminated)`` and their current targets."""
+"""The agent's memory: transitions ``(s, a, r, s', terminated)`` with their current
+targets, and the record of finished episodes."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from geoq._typing import FloatArray
 
-__all__ = ["TransitionBuffer"]
+__all__ = ["EpisodeRecord", "TransitionBuffer"]
 
 
 class TransitionBuffer:
@@ -108,3 +111,17 @@ class TransitionBuffer:
         buf._target[:n] = target
         buf._n = n
         return buf
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """One finished training episode (a row of ``learning_curve.csv``)."""
+
+    timesteps: int
+    """Environment steps taken by the agent when the episode ended."""
+    episode: int
+    """1-based episode index."""
+    ret: float
+    """Undiscounted return of the episode."""
+    success: float
+    """``info["is_success"]`` at the episode's end (1/0), NaN if the env reports none."""

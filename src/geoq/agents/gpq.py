@@ -42,214 +42,35 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import fields
 from os import PathLike
-from typing import Any, Literal
+from typing import Any
 
 import gymnasium
 import numpy as np
 import scipy.linalg
 from gymnasium import spaces
 
-from geoq._io import ArchiveError, load_archive, save_archive
 from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray
-from geoq.agents.acquisition import (
-    EXPLORATION_MODES,
-    Exploration,
-    candidate_actions,
-    choose_actions,
-)
-from geoq.agents.buffer import TransitionBuffer
+from geoq.agents._persist import load_agent, save_agent
+from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
+from geoq.agents.buffer import EpisodeRecord, TransitionBuffer
+from geoq.agents.config import REPLAYS, GPQConfig, check_int
 from geoq.agents.fitted_q import fitted_q_sweeps
 from geoq.agents.graph_replay import imagine_transitions
 from geoq.gp import SparseOnlineGP
 from geoq.kernels.geodesic import GraphKernel
-from geoq.learners.q_gp import KERNEL_NAMES, KernelName, QGPConfig, make_kernel
+from geoq.learners.q_gp import KernelName, QGPConfig, make_kernel
 from geoq.learners.scaling import InputScaling
 from geoq.tasks import TaskInfo, box_scaling, data_scaling, has_finite_bounds, task_info
 
-__all__ = ["EpisodeRecord", "GPQAgent", "GPQConfig"]
-
-Prior = Literal["midrange", "optimistic", "empirical"]
-PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
-Replay = Literal["uniform", "none", "graph"]
-REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
+__all__ = ["REPLAYS", "EpisodeRecord", "GPQAgent", "GPQConfig"]
 
 #: A data-driven input scale is refreshed when the states' spread outgrows it by this factor.
 RESCALE_FACTOR = 1.5
-
-_ARCHIVE_KIND = "GPQAgent"
-_ARCHIVE_VERSION = 1
-
-
-@dataclass(frozen=True)
-class GPQConfig:
-    """Everything that defines a :class:`GPQAgent` (saved with it, reported with results)."""
-
-    kernel: KernelName = "euclidean"
-    """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated``
-    (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph)."""
-    max_bv: int = 400
-    """Basis-vector budget of the sparse online GP. Measured on the swing-up (squared
-    exponential, 2,500 steps): 200 BVs reached success >= 0.9 in 0 of 6 seeds, 400 in
-    6 of 6: the balancing region needs the resolution."""
-    gamma: float = 0.98
-    """Discount factor."""
-    exploration: Exploration = "ucb"
-    """``ucb`` (mean + beta std), ``thompson``, ``gaussian`` (greedy + noise) or ``greedy``."""
-    beta: float = 0.5
-    """UCB width, in posterior standard deviations."""
-    action_noise: float = 0.3
-    """Std of the ``gaussian`` exploration noise, as a fraction of each action half-range."""
-    n_candidates: int = 21
-    """Candidate actions per state (a grid in 1-D; rounded up to a power of 2 in more)."""
-    noise: float = 0.01
-    """Observation-noise variance of the standardised targets."""
-    lengthscale: float | tuple[float, ...] | None = None
-    """Squared-exponential length-scale(s) in scaled input units (``euclidean``); a
-    tuple has one entry per input dimension ``d_s + d_a``. ``None``: the rule
-    ``state_lengthscale`` for every state dimension, ``action_lengthscale`` for
-    every action dimension."""
-    state_lengthscale: float = 0.15
-    """Length-scale of each state dimension when ``lengthscale`` is None (in
-    half-ranges of the space: 0.15 of the pendulum's ``[-pi, pi]`` is 0.47 rad)."""
-    action_lengthscale: float = 0.6
-    """Length-scale of each action dimension when ``lengthscale`` is None. Longer than
-    the states': one step's action moves the next state by ``dt``-small amounts, so
-    Q varies slowly along the action."""
-    amplitude: float = 1.0
-    """Prior variance of the standardised Q (every kernel)."""
-    eps: float = 0.3
-    """Graph threshold of JC12 eq. 2 (graph kernels)."""
-    sigma_sp: float = 0.03
-    """Width of JC12 eq. 3 (geodesic kernels)."""
-    sigma_se: float = 0.01
-    """Width of the JC12 eq. 5 interpolation weights (``interpolated``)."""
-    resistance_lengthscale: float = 0.3
-    """``l`` of the resistance kernel ``A exp(-R / l)``."""
-    tol: float = 1e-6
-    """Relative novelty threshold of the sparse GP."""
-    train_every: int = 250
-    """Steps between fitted-Q phases (one also runs at every episode's end)."""
-    max_sweeps: int = 200
-    """Largest number of fitted-Q sweeps per phase."""
-    sweep_tol: float = 1e-3
-    """A phase stops when no target moves by more than this (in units of ``y_scale``)."""
-    window: int = 5_000
-    """Fitted-Q phases use the most recent ``window`` transitions."""
-    replay: Replay = "uniform"
-    """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
-    all transitions alike); ``none``: no replay, the targets stay those computed
-    online when each step was taken and a phase only refits the posterior to them;
-    ``graph``: ``uniform`` plus up to ``replay_budget`` transitions imagined by the
-    graph's dynamics model (:mod:`geoq.agents.graph_replay`) for the actions not
-    taken at the stored states of largest TD error; they join the fitted-Q sweeps
-    (better bootstraps ``max_a' Q(s', a')`` for the stored transitions), not the
-    posterior the agent acts with."""
-    warmup_steps: int = 250
-    """Observation spaces with an infinite bound and no ``scaling=``: the first
-    ``warmup_steps`` steps take uniformly random actions, then the input scaling is
-    set from the states seen (:func:`geoq.tasks.data_scaling`) and learning starts
-    on them. As exploration widens, a fitted-Q phase that finds the states' spread
-    grown past ``RESCALE_FACTOR`` (1.5) x a scale rescales and rebuilds the GP from
-    the stored transitions (counted in ``GPQAgent.rescales``). Unused when every
-    bound is finite."""
-    replay_budget: int = 500
-    """Largest number of imagined transitions per fitted-Q phase (``replay="graph"``)."""
-    replay_eps: float = 0.9
-    """JC12 eq. 2 threshold of the replay graph: two state-action pairs are linked when
-    their squared-exponential similarity in length-scale units exceeds it."""
-    prior: Prior = "optimistic"
-    """What the GP assumes of ``Q`` where it has no data (the standardisation
-    ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
-    bounds ``[lo, hi]`` of :meth:`GPQAgent.value_bounds` or from the targets):
-    ``midrange``: mean ``(lo + hi) / 2``, std ``(hi - lo) / 2``; ``optimistic``:
-    mean ``hi``, std ``(hi - lo) / 2`` (optimism in the face of uncertainty);
-    ``empirical``: mean and std of the current targets."""
-
-    def __post_init__(self) -> None:
-        if self.kernel not in KERNEL_NAMES:
-            raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
-        if self.replay not in REPLAYS:
-            raise ValueError(f"replay must be one of {REPLAYS}, got {self.replay!r}")
-        if self.prior not in PRIORS:
-            raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
-        if self.exploration not in EXPLORATION_MODES:
-            raise ValueError(
-                f"exploration must be one of {EXPLORATION_MODES}, got {self.exploration!r}"
-            )
-        _check_int(self.max_bv, "max_bv", 1)
-        _check_int(self.n_candidates, "n_candidates", 3)
-        _check_int(self.train_every, "train_every", 1)
-        _check_int(self.max_sweeps, "max_sweeps", 0)
-        _check_int(self.window, "window", 1)
-        _check_int(self.replay_budget, "replay_budget", 0)
-        _check_int(self.warmup_steps, "warmup_steps", 1)
-        if not (isinstance(self.replay_eps, int | float) and 0.0 < self.replay_eps < 1.0):
-            raise ValueError(f"replay_eps must be in (0, 1), got {self.replay_eps!r}")
-        if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma < 1.0):
-            raise ValueError(f"gamma must be in [0, 1), got {self.gamma!r}")
-        for name in ("beta", "action_noise"):
-            _check_real(getattr(self, name), name, strict=False)
-        for name in ("noise", "amplitude", "eps", "sigma_sp", "sigma_se",
-                     "resistance_lengthscale", "sweep_tol", "state_lengthscale",
-                     "action_lengthscale"):  # fmt: skip
-            _check_real(getattr(self, name), name, strict=True)
-        if not 0.0 <= self.tol <= 1.0:
-            raise ValueError(f"tol must be in [0, 1], got {self.tol!r}")
-        if self.lengthscale is not None:
-            ls = np.atleast_1d(np.asarray(self.lengthscale, dtype=np.float64))
-            if not (np.all(np.isfinite(ls)) and np.all(ls > 0)):
-                raise ValueError(f"lengthscale must be finite and > 0, got {self.lengthscale!r}")
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-able representation."""
-        out = asdict(self)
-        if isinstance(self.lengthscale, tuple):
-            out["lengthscale"] = list(self.lengthscale)
-        return out
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> GPQConfig:
-        """Inverse of :meth:`as_dict`; unknown keys raise ``ValueError``."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
-        d = dict(data)
-        if isinstance(d.get("lengthscale"), list):
-            d["lengthscale"] = tuple(float(v) for v in d["lengthscale"])
-        return cls(**d)
-
-
-def _check_int(value: Any, name: str, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def _check_real(value: Any, name: str, *, strict: bool) -> None:
-    ok = isinstance(value, int | float | np.floating) and not isinstance(value, bool)
-    if not ok or not np.isfinite(value) or value < 0 or (strict and value == 0):
-        bound = "> 0" if strict else ">= 0"
-        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
-
-
-@dataclass(frozen=True)
-class EpisodeRecord:
-    """One finished training episode (a row of ``learning_curve.csv``)."""
-
-    timesteps: int
-    """Environment steps taken by the agent when the episode ended."""
-    episode: int
-    """1-based episode index."""
-    ret: float
-    """Undiscounted return of the episode."""
-    success: float
-    """``info["is_success"]`` at the episode's end (1/0), NaN if the env reports none."""
 
 
 def _as_env(env: gymnasium.Env | str) -> gymnasium.Env:
@@ -466,7 +287,7 @@ class GPQAgent:
         saved and reloaded agent continues exactly as the original would; an
         episode cut short by ``total_timesteps`` is not recorded.
         """
-        _check_int(total_timesteps, "total_timesteps", 0)
+        check_int(total_timesteps, "total_timesteps", 0)
         env = self.env
         if env is None:
             raise RuntimeError("this agent has no env; pass env= to GPQAgent.load to keep learning")
@@ -698,33 +519,7 @@ class GPQAgent:
     # ------------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:
         """Save the agent (config, GP, transitions, counters, generator state) as ``.npz``."""
-        arrays: dict[str, Any] = {f"gp/{k}": v for k, v in self.gp.to_arrays().items()}
-        arrays.update({f"buffer/{k}": v for k, v in self.buffer.to_arrays().items()})
-        meta = {
-            "config": self.config.as_dict(),
-            "scaling": self.scaling.as_dict(),
-            "env_id": self.env_id,
-            "seed": self.seed,
-            "rng_state": self.rng.bit_generator.state,
-            "y_mean": self.y_mean,
-            "y_scale": self.y_scale,
-            "reward_range": list(self.reward_range),
-            "num_timesteps": self.num_timesteps,
-            "fitted_q_sweeps": self.fitted_q_sweeps,
-            "imagined_counts": self.imagined_counts,
-            "train_seconds": self.train_seconds,
-            "scaling_pending": self.scaling_pending,
-            "data_scaled": self.data_scaled,
-            "rescales": self.rescales,
-        }
-        arrays["meta"] = np.asarray(json.dumps(meta, allow_nan=True))
-        arrays["episodes"] = np.array(
-            [[e.timesteps, e.episode, e.ret, e.success] for e in self.episodes], dtype=np.float64
-        ).reshape(-1, 4)
-        arrays["candidates"] = self.candidates
-        arrays["action_box"] = np.vstack([self.action_low, self.action_high])
-        arrays["obs_dim"] = np.int64(self.obs_dim)
-        save_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION, arrays)
+        save_agent(self, path)
 
     @classmethod
     def load(cls, path: str | PathLike[str], env: gymnasium.Env | str | None = None) -> GPQAgent:
@@ -734,67 +529,7 @@ class GPQAgent:
         ones); by default the saved env id is made again if it is registered,
         else the agent can only :meth:`predict`.
         """
-        _, a = load_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION)
-        try:
-            meta = json.loads(str(a["meta"]))
-            config = GPQConfig.from_dict(meta["config"])
-            sc = meta["scaling"]
-            scaling = InputScaling(tuple(sc["scale"]), tuple(sc["periods"]), tuple(sc["names"]))
-            box = np.asarray(a["action_box"], dtype=np.float64)
-            candidates = np.asarray(a["candidates"], dtype=np.float64)
-            obs_dim = int(a["obs_dim"])
-            gp = SparseOnlineGP.from_arrays(
-                {k[3:]: v for k, v in a.items() if k.startswith("gp/")}, source=path
-            )
-            buffer = TransitionBuffer.from_arrays(
-                {k[7:]: v for k, v in a.items() if k.startswith("buffer/")}
-            )
-            episodes = np.asarray(a["episodes"], dtype=np.float64)
-        except ArchiveError:
-            raise
-        except (KeyError, ValueError, TypeError) as exc:
-            raise ArchiveError(
-                f"{path}: not a valid GPQAgent archive ({exc}); save it again"
-            ) from exc
-        d_a = box.shape[1] if box.ndim == 2 else -1
-        if (
-            box.shape != (2, d_a) or candidates.ndim != 2 or candidates.shape[1] != d_a
-            or scaling.dim != obs_dim + d_a or buffer.obs_dim != obs_dim
-            or buffer.action_dim != d_a or episodes.ndim != 2 or episodes.shape[1] != 4
-            or not (np.all(np.isfinite(box)) and np.all(np.isfinite(candidates)))
-            or np.any(candidates < box[0]) or np.any(candidates > box[1])
-            or not np.isfinite(meta["y_mean"]) or not (meta["y_scale"] > 0)
-        ):  # fmt: skip
-            raise ArchiveError(f"{path}: inconsistent GPQAgent archive; save it again")
-        agent = cls.__new__(cls)
-        agent.config, agent.scaling = config, scaling
-        agent.obs_dim, agent.action_dim = obs_dim, d_a
-        agent.action_low, agent.action_high = box[0].copy(), box[1].copy()
-        agent.env_id = str(meta["env_id"])
-        agent.seed = meta["seed"]
-        agent.rng = np.random.default_rng()
-        agent.rng.bit_generator.state = meta["rng_state"]
-        agent.candidates = candidates
-        agent.gp, agent.buffer = gp, buffer
-        agent.y_mean, agent.y_scale = float(meta["y_mean"]), float(meta["y_scale"])
-        lo, hi = meta["reward_range"]
-        agent.reward_range = (float(lo), float(hi))
-        agent.num_timesteps = int(meta["num_timesteps"])
-        agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
-        agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]
-        agent.train_seconds = float(meta.get("train_seconds", 0.0))
-        agent.scaling_pending = bool(meta.get("scaling_pending", False))
-        agent.data_scaled = bool(meta.get("data_scaled", False))
-        agent.rescales = int(meta.get("rescales", 0))
-        agent.episodes = [
-            EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes
-        ]
-        agent.env = None
-        if env is None and agent.env_id and agent.env_id in gymnasium.registry:
-            env = agent.env_id
-        if env is not None:
-            agent.set_env(env)
-        return agent
+        return load_agent(cls, path, env)
 
     def set_env(self, env: gymnasium.Env | str) -> None:
         """Attach an env whose spaces match the agent's."""

@@ -1,0 +1,174 @@
+"""``GPQConfig``: everything that defines a :class:`~geoq.agents.GPQAgent`, validated.
+
+Saved with every agent and reported with every result; ``as_dict`` /
+``from_dict`` give its JSON form (unknown keys are an error).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Literal
+
+import numpy as np
+
+from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
+from geoq.learners.q_gp import KERNEL_NAMES, KernelName
+
+__all__ = ["PRIORS", "REPLAYS", "GPQConfig", "Prior", "Replay", "check_int"]
+
+Prior = Literal["midrange", "optimistic", "empirical"]
+PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
+Replay = Literal["uniform", "none", "graph"]
+REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
+
+
+@dataclass(frozen=True)
+class GPQConfig:
+    """Everything that defines a :class:`GPQAgent` (saved with it, reported with results)."""
+
+    kernel: KernelName = "euclidean"
+    """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated``
+    (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph)."""
+    max_bv: int = 400
+    """Basis-vector budget of the sparse online GP. Measured on the swing-up (squared
+    exponential, 2,500 steps): 200 BVs reached success >= 0.9 in 0 of 6 seeds, 400 in
+    6 of 6: the balancing region needs the resolution."""
+    gamma: float = 0.98
+    """Discount factor."""
+    exploration: Exploration = "ucb"
+    """``ucb`` (mean + beta std), ``thompson``, ``gaussian`` (greedy + noise) or ``greedy``."""
+    beta: float = 0.5
+    """UCB width, in posterior standard deviations."""
+    action_noise: float = 0.3
+    """Std of the ``gaussian`` exploration noise, as a fraction of each action half-range."""
+    n_candidates: int = 21
+    """Candidate actions per state (a grid in 1-D; rounded up to a power of 2 in more)."""
+    noise: float = 0.01
+    """Observation-noise variance of the standardised targets."""
+    lengthscale: float | tuple[float, ...] | None = None
+    """Squared-exponential length-scale(s) in scaled input units (``euclidean``); a
+    tuple has one entry per input dimension ``d_s + d_a``. ``None``: the rule
+    ``state_lengthscale`` for every state dimension, ``action_lengthscale`` for
+    every action dimension."""
+    state_lengthscale: float = 0.15
+    """Length-scale of each state dimension when ``lengthscale`` is None (in
+    half-ranges of the space: 0.15 of the pendulum's ``[-pi, pi]`` is 0.47 rad)."""
+    action_lengthscale: float = 0.6
+    """Length-scale of each action dimension when ``lengthscale`` is None. Longer than
+    the states': one step's action moves the next state by ``dt``-small amounts, so
+    Q varies slowly along the action."""
+    amplitude: float = 1.0
+    """Prior variance of the standardised Q (every kernel)."""
+    eps: float = 0.3
+    """Graph threshold of JC12 eq. 2 (graph kernels)."""
+    sigma_sp: float = 0.03
+    """Width of JC12 eq. 3 (geodesic kernels)."""
+    sigma_se: float = 0.01
+    """Width of the JC12 eq. 5 interpolation weights (``interpolated``)."""
+    resistance_lengthscale: float = 0.3
+    """``l`` of the resistance kernel ``A exp(-R / l)``."""
+    tol: float = 1e-6
+    """Relative novelty threshold of the sparse GP."""
+    train_every: int = 250
+    """Steps between fitted-Q phases (one also runs at every episode's end)."""
+    max_sweeps: int = 200
+    """Largest number of fitted-Q sweeps per phase."""
+    sweep_tol: float = 1e-3
+    """A phase stops when no target moves by more than this (in units of ``y_scale``)."""
+    window: int = 5_000
+    """Fitted-Q phases use the most recent ``window`` transitions."""
+    replay: Replay = "uniform"
+    """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
+    all transitions alike); ``none``: no replay, the targets stay those computed
+    online when each step was taken and a phase only refits the posterior to them;
+    ``graph``: ``uniform`` plus up to ``replay_budget`` transitions imagined by the
+    graph's dynamics model (:mod:`geoq.agents.graph_replay`) for the actions not
+    taken at the stored states of largest TD error; they join the fitted-Q sweeps
+    (better bootstraps ``max_a' Q(s', a')`` for the stored transitions), not the
+    posterior the agent acts with."""
+    warmup_steps: int = 250
+    """Observation spaces with an infinite bound and no ``scaling=``: the first
+    ``warmup_steps`` steps take uniformly random actions, then the input scaling is
+    set from the states seen (:func:`geoq.tasks.data_scaling`) and learning starts
+    on them. As exploration widens, a fitted-Q phase that finds the states' spread
+    grown past ``RESCALE_FACTOR`` (1.5) x a scale rescales and rebuilds the GP from
+    the stored transitions (counted in ``GPQAgent.rescales``). Unused when every
+    bound is finite."""
+    replay_budget: int = 500
+    """Largest number of imagined transitions per fitted-Q phase (``replay="graph"``)."""
+    replay_eps: float = 0.9
+    """JC12 eq. 2 threshold of the replay graph: two state-action pairs are linked when
+    their squared-exponential similarity in length-scale units exceeds it."""
+    prior: Prior = "optimistic"
+    """What the GP assumes of ``Q`` where it has no data (the standardisation
+    ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
+    bounds ``[lo, hi]`` of :meth:`GPQAgent.value_bounds` or from the targets):
+    ``midrange``: mean ``(lo + hi) / 2``, std ``(hi - lo) / 2``; ``optimistic``:
+    mean ``hi``, std ``(hi - lo) / 2`` (optimism in the face of uncertainty);
+    ``empirical``: mean and std of the current targets."""
+
+    def __post_init__(self) -> None:
+        if self.kernel not in KERNEL_NAMES:
+            raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
+        if self.replay not in REPLAYS:
+            raise ValueError(f"replay must be one of {REPLAYS}, got {self.replay!r}")
+        if self.prior not in PRIORS:
+            raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
+        if self.exploration not in EXPLORATION_MODES:
+            raise ValueError(
+                f"exploration must be one of {EXPLORATION_MODES}, got {self.exploration!r}"
+            )
+        check_int(self.max_bv, "max_bv", 1)
+        check_int(self.n_candidates, "n_candidates", 3)
+        check_int(self.train_every, "train_every", 1)
+        check_int(self.max_sweeps, "max_sweeps", 0)
+        check_int(self.window, "window", 1)
+        check_int(self.replay_budget, "replay_budget", 0)
+        check_int(self.warmup_steps, "warmup_steps", 1)
+        if not (isinstance(self.replay_eps, int | float) and 0.0 < self.replay_eps < 1.0):
+            raise ValueError(f"replay_eps must be in (0, 1), got {self.replay_eps!r}")
+        if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma < 1.0):
+            raise ValueError(f"gamma must be in [0, 1), got {self.gamma!r}")
+        for name in ("beta", "action_noise"):
+            _check_real(getattr(self, name), name, strict=False)
+        for name in ("noise", "amplitude", "eps", "sigma_sp", "sigma_se",
+                     "resistance_lengthscale", "sweep_tol", "state_lengthscale",
+                     "action_lengthscale"):  # fmt: skip
+            _check_real(getattr(self, name), name, strict=True)
+        if not 0.0 <= self.tol <= 1.0:
+            raise ValueError(f"tol must be in [0, 1], got {self.tol!r}")
+        if self.lengthscale is not None:
+            ls = np.atleast_1d(np.asarray(self.lengthscale, dtype=np.float64))
+            if not (np.all(np.isfinite(ls)) and np.all(ls > 0)):
+                raise ValueError(f"lengthscale must be finite and > 0, got {self.lengthscale!r}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-able representation."""
+        out = asdict(self)
+        if isinstance(self.lengthscale, tuple):
+            out["lengthscale"] = list(self.lengthscale)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> GPQConfig:
+        """Inverse of :meth:`as_dict`; unknown keys raise ``ValueError``."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
+        d = dict(data)
+        if isinstance(d.get("lengthscale"), list):
+            d["lengthscale"] = tuple(float(v) for v in d["lengthscale"])
+        return cls(**d)
+
+
+def check_int(value: Any, name: str, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _check_real(value: Any, name: str, *, strict: bool) -> None:
+    ok = isinstance(value, int | float | np.floating) and not isinstance(value, bool)
+    if not ok or not np.isfinite(value) or value < 0 or (strict and value == 0):
+        bound = "> 0" if strict else ">= 0"
+        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")

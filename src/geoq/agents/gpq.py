@@ -459,7 +459,7 @@ class GPQAgent:
         self.y_mean, self.y_scale = self._standardisation(y[:N], bounds)
         # The posterior the agent acts with is fit to the stored transitions only: imagined
         # ones (replay="graph") shape their targets, not the uncertainty that drives
-        # exploration (measured: fitting them too, 0 of 4 seeds learned the swing-up).
+        # exploration (docs/design-notes.md).
         gp.refit(X[:N], (y[:N] - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)
         return result.sweeps

@@ -407,7 +407,7 @@ def render_report(
     )
     for posterior, title in (
         ("online", "the online posterior (the paper's)"),
-        ("refit", "the posterior refitted on the final BV set and graph (SPEC §1 item 2)"),
+        ("refit", "the posterior refitted on the final BV set and graph (against staleness)"),
     ):
         mse_col, nv_col = POSTERIOR_COLUMNS[posterior]
         lines += [
@@ -453,7 +453,7 @@ def render_report(
             lines.append("")
     lines += _variant_lines(rows, variant_rows)
     lines += [
-        "## Refits against staleness (SPEC §1 item 2)",
+        "## Refits against staleness",
         "",
         "Paired MSE differences to the online posterior, by max_bv: `end` refits once on the "
         "final BV set and graph; `episode` refits after every roll-out (later online updates "

@@ -300,8 +300,7 @@ def fit_squared_exponential(
         spread = np.log(RESTART_FACTOR)
         starts += list(theta_dd + rng.uniform(-spread, spread, size=(int(n_restarts), n_ls + 2)))
     starts = [np.clip(s, bounds[:, 0], bounds[:, 1]) for s in starts]
-    # Small dense algebra runs with one BLAS thread (STYLE): measured 40x faster than two
-    # threads on a busy 2-core machine.
+    # Small dense algebra runs with one BLAS thread (STYLE; docs/design-notes.md).
     with threadpool_limits(limits=1, user_api="blas"):
         fit, problems = _maximise(_Objective(Xa, ya, ard, config), starts, bounds, ard)
     if problems:

@@ -133,11 +133,10 @@ class SparseOnlineGP:
         (and re-factorisations of ``K_BV`` for basis-tracking kernels); default
         ``max(64, 2 * max_bv)`` (amortised O(max_bv^2) per change), and 1 for a
         positive-definite basis-tracking kernel (O(m^3) per change), whose ``K_BV``
-        changes with its graph: with a stale factor the resistance kernel's novelty
-        fell to -1679 and its online Q-function MSE was 10-250x that with a factor
-        kept current. For an indefinite graph kernel (geodesic) keeping the factor
-        current did not help (online MSE no better, often worse, at 3-20x the
-        cost), so it gets the interval of ordinary kernels.
+        changes with its graph (a stale factor made its novelty and online MSE
+        useless); for an indefinite graph kernel (geodesic) keeping the factor
+        current did not help, so it gets the interval of ordinary kernels. The
+        measurements behind both choices: ``docs/design-notes.md``.
     config : numerics constants (jitter policy, novelty floor).
 
     Notes

@@ -99,10 +99,10 @@ class ResistanceDistance(BasisGraphDistance):
 
     #: An update of rank ``r`` (the cycle-closing edges of an added node, the edges of a
     #: removed node minus one) in a component of ``s`` nodes costs O(s^2 r), about
-    #: ``r / s`` of a recomputation (measured: 1.9 ms at s = 200, r = 150 vs 4.1 ms from
-    #: scratch). It is applied when ``r <= max(RANK_FLOOR, RANK_FRACTION * s)``; a larger
-    #: one (a dense neighbourhood) leaves ``R`` stale, and the next use recomputes it once,
-    #: whatever the number of changes in between (the GP's add + delete per point).
+    #: ``r / s`` of a recomputation (timings: ``docs/design-notes.md``). It is applied
+    #: when ``r <= max(RANK_FLOOR, RANK_FRACTION * s)``; a larger one (a dense
+    #: neighbourhood) leaves ``R`` stale, and the next use recomputes it once, whatever
+    #: the number of changes in between (the GP's add + delete per point).
     RANK_FRACTION = 0.25
     RANK_FLOOR = 8
 

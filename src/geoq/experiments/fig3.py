@@ -198,6 +198,7 @@ def score_learner(
     *,
     td: FloatArray | None = None,
     refit_episode: bool = True,
+    focus: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Fit one GP learner on ``rollouts`` and score it at the evaluation pairs: the Fig. 3
     columns (online posterior, after a DTC refit on its final BV set and graph, and, with
@@ -205,8 +206,15 @@ def score_learner(
 
     ``states [N, d]`` and ``actions [N]`` / ``[N, d_a]`` are in the learner's input space;
     ``mc_mean``, ``mc_stderr`` the Monte-Carlo ``Q^pi`` there; ``td`` the TD table's values
-    (column ``mse_td``; left out when ``None``).
+    (column ``mse_td``; left out when ``None``). ``focus``, a boolean mask ``[N]`` of
+    pairs of special interest, adds ``mse_focus`` and ``mse_refit_focus``: the MSEs over
+    those pairs only (NaN when there are none).
     """
+
+    def focused(mean: FloatArray) -> float:
+        assert focus is not None
+        return mse(mean[focus], mc_mean[focus]) if focus.any() else float("nan")
+
     with warnings.catch_warnings(), np.errstate(over="ignore"):
         # Repairs of the indefinite geodesic Gram are expected; they are counted in the row.
         # A diverged posterior scores an MSE of inf (counted in REPORT.md), not a warning.
@@ -223,6 +231,8 @@ def score_learner(
         }
         if td is not None:
             row["mse_td"] = mse(mean, td)
+        if focus is not None:
+            row["mse_focus"] = focused(mean)
         row.update(
             {
                 # The trivial baseline: predict the mean training return everywhere.
@@ -238,6 +248,8 @@ def score_learner(
         mean, std = learner.predict(states, actions, return_std=True)
         row["mse_refit"] = mse(mean, mc_mean)
         row["normalized_variance_refit"] = normalized_variance(std**2, prior)
+        if focus is not None:
+            row["mse_refit_focus"] = focused(mean)
         if not refit_episode:
             return row
         # A refit after every roll-out changes what the later online updates start from:

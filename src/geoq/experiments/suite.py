@@ -48,7 +48,11 @@ from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
 from geoq.experiments.fig3 import FIG3_COLUMNS, load_truth, score_learner
 from geoq.experiments.plotting import plot_budget_curves
 from geoq.experiments.seeding import STREAM, rng_for
-from geoq.experiments.suite_report import plot_task_value_map, render_suite_report
+from geoq.experiments.suite_report import (
+    focus_note,
+    plot_task_value_map,
+    render_suite_report,
+)
 from geoq.experiments.sweep import cell_spec, run_sweep
 from geoq.experiments.tuning import TUNING_COLUMNS, evidence_config, select_by_validation
 from geoq.gp import NumericalWarning
@@ -70,7 +74,12 @@ __all__ = [
 SUITE_STREAM = 2_000_000
 
 #: Columns of the per-task ``fig3.csv`` and of ``suite.csv``.
-SUITE_COLUMNS: tuple[str, ...] = ("task", *(c for c in FIG3_COLUMNS if c != "mse_td"))
+SUITE_COLUMNS: tuple[str, ...] = (
+    "task",
+    *(c for c in FIG3_COLUMNS if c != "mse_td"),
+    "mse_focus",
+    "mse_refit_focus",
+)
 
 
 @dataclass(frozen=True)
@@ -330,7 +339,8 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
     """Fit and score one learner (:func:`geoq.experiments.fig3.score_learner`)."""
     task = suite_task(cell.task)
     truth = load_truth(cell.truth_dir, cell.truth)
-    states = task.observed(np.asarray(truth["states"], dtype=np.float64))
+    internal = np.asarray(truth["states"], dtype=np.float64)
+    states = task.observed(internal)
     actions = np.asarray(truth["actions"], dtype=np.float64)
     config = QGPConfig.from_dict(cell.learner).replace(kernel=cell.kernel, max_bv=cell.max_bv)
     rollouts = observe_rollouts(
@@ -353,6 +363,7 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
             actions,
             np.asarray(truth["mc_mean"], dtype=np.float64),
             np.asarray(truth["mc_stderr"]),
+            focus=None if task.focus is None else task.focus(internal),
         )
     )
     return row
@@ -492,7 +503,7 @@ def run_suite(
         for t in task_ids
         for s in range(cfg.seeds)
     ]
-    run_sweep(truths, truth_cell, truth_dir, desc="suite ground truth", **sweep)
+    truth_rows = run_sweep(truths, truth_cell, truth_dir, desc="suite ground truth", **sweep)
     budget_cells = [
         BudgetCell(
             tc.task,
@@ -580,6 +591,36 @@ def run_suite(
         "execution": {"jobs": jobs, "backend": backend, "scheduler": scheduler},
     }
     atomic_write_json(out / "config.json", record)
+    notes: dict[str, list[str]] = {}
+    for t in task_ids:
+        task = suite_task(t)
+        if task.focus is None:
+            continue
+        train = np.vstack(
+            [
+                ro.states
+                for s in range(cfg.seeds)
+                for ro in _rollouts(
+                    task, task.train_rollouts, _rng(cfg.root_seed, t, s, STREAM["train"])
+                )
+            ]
+        )
+        evaluation = np.vstack(
+            [
+                np.asarray(tr["states"])
+                for tc, tr in zip(truths, truth_rows, strict=True)
+                if tc.task == t
+            ]
+        )
+        notes[t] = [
+            focus_note(
+                task.focus_doc,
+                int(task.focus(evaluation).sum()),
+                len(evaluation),
+                int(task.focus(train).sum()),
+                len(train),
+            )
+        ]
     report = render_suite_report(
         task_ids=task_ids,
         config=cfg.as_dict(),
@@ -589,5 +630,6 @@ def run_suite(
         maps=maps,
         wall_seconds=wall,
         version=geoq.__version__,
+        notes=notes,
     )
     return atomic_write_text(out / "SUITE.md", report)

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from geoq.experiments.plotting import KERNEL_STYLE
 from geoq.experiments.stats import Interval, log_interval, paired_difference
 
-__all__ = ["graph_vs_se", "plot_task_value_map", "render_suite_report"]
+__all__ = ["focus_note", "graph_vs_se", "plot_task_value_map", "render_suite_report"]
 
 _POSTERIORS = {"online": "mse", "refit": "mse_refit"}
 
@@ -75,6 +75,39 @@ def _geo(
     )
 
 
+def focus_note(
+    description: str, n_eval: int, total_eval: int, n_train: int, total_train: int
+) -> str:
+    """One line: how many evaluation and training pairs lie in a task's focus region."""
+    return (
+        f"Pairs {description}: {n_eval} of {total_eval} evaluation pairs "
+        f"({100 * n_eval / max(total_eval, 1):.1f}%) and {n_train} of {total_train} training "
+        f"pairs ({100 * n_train / max(total_train, 1):.1f}%), all seeds. The MSE over "
+        "those evaluation pairs alone is in the table below (`mse_focus`, `mse_refit_focus`)."
+    )
+
+
+def _focus_table(rows: Sequence[Mapping[str, Any]], task: str, budgets: Sequence[int]) -> list[str]:
+    """MSE over the focus pairs only, per kernel and budget, with the paired difference to SE."""
+    out = [
+        "| kernel | max_bv | MSE online, focus pairs | MSE refit, focus pairs | graph - SE online "
+        "[95%] | graph - SE refit [95%] |",
+        "|---|---|---|---|---|---|",
+    ]
+    kernels = [k for k in KERNEL_STYLE if any(r["kernel"] == k and r["task"] == task for r in rows)]
+    for k in kernels:
+        for b in budgets:
+            online = _geo(rows, task, k, b, "mse_focus")
+            refit = _geo(rows, task, k, b, "mse_refit_focus")
+            diffs = ["-", "-"]
+            if k != "euclidean":
+                diffs = [
+                    str(_paired(rows, task, b, k, c)) for c in ("mse_focus", "mse_refit_focus")
+                ]
+            out.append(f"| {k} | {b} | {online} | {refit} | {diffs[0]} | {diffs[1]} |")
+    return [*out, ""]
+
+
 def render_suite_report(
     *,
     task_ids: Sequence[str],
@@ -85,8 +118,9 @@ def render_suite_report(
     maps: Mapping[str, Mapping[str, Any]],
     wall_seconds: float,
     version: str,
+    notes: Mapping[str, Sequence[str]] | None = None,
 ) -> str:
-    """The Markdown of SUITE.md."""
+    """The Markdown of SUITE.md; ``notes`` adds measured lines under a task's table."""
     budgets = sorted({int(r["max_bv"]) for r in rows})
     seeds = len({int(r["seed"]) for r in rows})
     lines = [
@@ -176,6 +210,10 @@ def render_suite_report(
             f"squared standard error of the truth): {np.mean(floor):.3g}.",
             "",
         ]
+        for note in (notes or {}).get(t, ()):
+            lines += [note, ""]
+        if any(r["task"] == t and "mse_focus" in r for r in rows):
+            lines += _focus_table(rows, t, budgets)
         if t in maps:
             m = maps[t]
             errs = ", ".join(f"`{k}` {v:.4g}" for k, v in m["mse"].items())
@@ -242,7 +280,11 @@ def plot_task_value_map(task_id: str, names: Sequence[str], m: Mapping[str, Any]
     the wall (``x = 0.5`` outside the door ``0.8 <= y <= 1``) is drawn on every panel.
     """
     xs, ys = np.asarray(m["x"]), np.asarray(m["y"])
-    names_maps = list(m["maps"])
+    # The truth first, then the kernels in the order of every other figure (a cell's row
+    # comes back from JSON with its keys sorted).
+    names_maps = [k for k in KERNEL_STYLE if k == "monte_carlo" and k in m["maps"]]
+    names_maps += [k for k in KERNEL_STYLE if k != "monte_carlo" and k in m["maps"]]
+    names_maps += sorted(k for k in m["maps"] if k not in names_maps)
     fig = Figure(figsize=(3.6 * len(names_maps), 3.4), layout="constrained")
     axes = fig.subplots(1, len(names_maps), squeeze=False)[0]
     truth = np.asarray(m["maps"]["monte_carlo"], dtype=np.float64)

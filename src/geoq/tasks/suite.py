@@ -41,8 +41,10 @@ from gymnasium import spaces
 
 from geoq._typing import FloatArray
 from geoq.envs import (
+    DOOR,
     PENDULUM_SWING_UP_ID,
     TWO_ROOMS_ID,
+    WALL_X,
     PendulumParams,
     pendulum_step,
     sample_hanging_states,
@@ -67,6 +69,7 @@ __all__ = [
     "SUITE_TASK_IDS",
     "SuiteTask",
     "check_box_spaces",
+    "near_closed_wall",
     "observe_rollouts",
     "suite_task",
 ]
@@ -105,6 +108,10 @@ class SuiteTask:
     map_box : ``((lo_0, hi_0), (lo_1, hi_1))`` of the internal state for a value map, or
         ``None`` (no map: the state is not 2-D and observed as is).
     policy_doc : one line on the evaluation policy, for reports.
+    focus : internal states ``[N, d]`` -> boolean mask ``[N]`` of the states where the
+        task's value function is discontinuous between near neighbours (TwoRooms: within
+        0.1 of the wall's closed part), scored separately; ``None``: no such region.
+    focus_doc : what ``focus`` selects, for reports.
     """
 
     env_id: str
@@ -119,6 +126,8 @@ class SuiteTask:
     state_names: tuple[str, ...]
     map_box: tuple[tuple[float, float], tuple[float, float]] | None
     policy_doc: str
+    focus: Callable[[FloatArray], np.ndarray] | None = None
+    focus_doc: str = ""
 
     def mean_action(self, states: FloatArray) -> FloatArray:
         """The deterministic part of the evaluation policy at internal states."""
@@ -187,6 +196,8 @@ def _build(env_id: str) -> SuiteTask:
             ((0.0, 1.0), (0.0, 1.0)),
             "geoq.policies.TwoRoomsWaypointPolicy(): unit moves to the door's middle, then to "
             "the goal, noise 0.3 per component",
+            focus=near_closed_wall,
+            focus_doc="within 0.1 of the wall's closed part (|x - 0.5| < 0.1, y < 0.8)",
         )
     if env_id == MOUNTAIN_CAR_ID:
         return SuiteTask(
@@ -220,6 +231,13 @@ def _build(env_id: str) -> SuiteTask:
             "theta = atan2(sin, cos) with Pendulum-v1's physics, noise 0.6 N m",
         )
     raise AssertionError(env_id)  # pragma: no cover - guarded by suite_task
+
+
+def near_closed_wall(states: FloatArray) -> np.ndarray:
+    """TwoRooms states within 0.1 of the wall's closed part: ``|x - 0.5| < 0.1``, ``y < 0.8``,
+    where neighbours on the two sides of the wall are far apart along the dynamics."""
+    s = np.asarray(states, dtype=np.float64)
+    return (np.abs(s[:, 0] - WALL_X) < 0.1) & (s[:, 1] < DOOR[0])
 
 
 _CACHE: dict[str, SuiteTask] = {}

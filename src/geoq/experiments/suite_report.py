@@ -127,7 +127,10 @@ def render_suite_report(
         "# geoq task suite: policy evaluation (the Fig. 3 protocol on every task)",
         "",
         f"geoq {version}, scale `{config['scale']}`, root seed {config['root_seed']}, "
-        f"{seeds} seeds, budgets {budgets}.",
+        f"{seeds} seeds, budgets {budgets}. Per-task settings (evaluation policy, gamma, "
+        "roll-outs, input scaling) are in `config.json` and `geoq.tasks.suite`; inputs are "
+        "scaled by the spaces' half-ranges, so the swing-up here uses `(pi, 8, 5)` where "
+        "`geoq reproduce` uses `(2, 4, 5)`, and its numbers differ from REPORT.md's.",
         "",
         "## Does a graph kernel beat the squared exponential?",
         "",

@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= results/demo
 
-.PHONY: install test demo lint bench reproduce-paper clean
+.PHONY: install test demo lint bench reproduce-paper suite clean
 
 install: $(STAMP)
 
@@ -23,6 +23,9 @@ demo: install
 
 reproduce-paper: install
 	$(BIN)/geoq reproduce --out results/paper --scale paper --jobs 2
+
+suite: install
+	$(BIN)/geoq suite --out results/suite --scale quick --jobs 2
 
 lint: install
 	$(BIN)/ruff check src tests benchmarks

@@ -117,7 +117,9 @@ def test_start_specs_and_custom_dynamics() -> None:
     with pytest.raises(ValueError, match=">= 1"):
         collect_rollouts(0, 4, unit_policy, rng)
     with pytest.raises(ValueError, match="policy returned"):
-        collect_rollouts(3, 4, lambda s, g: np.ones((3, 1)), rng, start=[0.0], step=drift)
+        collect_rollouts(3, 4, lambda s, g: np.ones((3, 1, 1)), rng, start=[0.0], step=drift)
+    with pytest.raises(ValueError, match="policy returned"):  # [n] is scalar actions, not d_a = n
+        collect_rollouts(3, 4, lambda s, g: np.ones((2,)), rng, start=[0.0], step=drift)
     with pytest.raises(ValueError, match="no roll-outs"):
         to_training_data([])
 

@@ -16,6 +16,9 @@ Commands
 ``geoq bench-control --out DIR [--kernel K ...] [--seeds N] [--timesteps N] ...``
     Kernels x seeds through the resumable sweep runner: CONTROL.md, control.csv
     and learning curves (:func:`geoq.experiments.control.run_control_benchmark`).
+``geoq suite --out DIR [--tasks ID ...] [--scale quick|full] [--jobs N] ...``
+    Policy evaluation on the task suite (:func:`geoq.experiments.suite.run_suite`):
+    the Fig. 3 protocol per task and a SUITE.md; resumable.
 ``geoq version``
     Print the package version (also ``geoq --version``).
 ``geoq info``
@@ -40,7 +43,7 @@ from typing import Annotated, Any
 
 import typer
 
-__all__ = ["Backend", "KernelChoice", "Scale", "app", "main"]
+__all__ = ["Backend", "KernelChoice", "Scale", "SuiteScale", "app", "main"]
 
 
 class Scale(enum.StrEnum):
@@ -518,6 +521,80 @@ def info() -> None:
         if inspect.isclass(obj) and issubclass(obj, kernels.Kernel) and not inspect.isabstract(obj):
             doc = (inspect.getdoc(obj) or "").splitlines()
             typer.echo(f"  {name}: {doc[0] if doc else ''}".rstrip(": "))
+
+
+class SuiteScale(enum.StrEnum):
+    """Size of a task-suite run."""
+
+    quick = "quick"
+    full = "full"
+
+
+@app.command()
+def suite(
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            help=(
+                "Output directory (created if missing): SUITE.md, suite.csv, config.json and, "
+                "per task, fig3.csv, fig3.png, fig3_refit.png, tuning.csv and value_map.csv/png "
+                "(2-D states). Finished cells are kept under it: rerun to resume."
+            ),
+            file_okay=False,
+        ),
+    ],
+    tasks: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--tasks",
+            "--task",
+            help=(
+                "Task id (repeat the option; default: all of geoq/PendulumSwingUp-v0, "
+                "geoq/TwoRooms-v0, MountainCarContinuous-v0, Pendulum-v1)."
+            ),
+        ),
+    ] = None,
+    scale: Annotated[
+        SuiteScale,
+        typer.Option(
+            "--scale",
+            case_sensitive=False,
+            help="quick: 3 seeds, 4 budgets (minutes on 2 cores). full: 10 seeds, 8 budgets.",
+        ),
+    ] = SuiteScale.quick,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")] = 1,
+    backend: Annotated[
+        Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
+    ] = Backend.loky,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
+    ] = None,
+    seed: Annotated[
+        int | None, typer.Option("--seed", metavar="ROOT_SEED", min=0, help="Root seed.")
+    ] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
+) -> None:
+    """Policy evaluation on the task suite: the Fig. 3 protocol per task, SUITE.md (resumable)."""
+    if scheduler is not None and backend is not Backend.dask:
+        raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
+    if out.exists() and not out.is_dir():
+        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    from geoq.tasks.suite import suite_task
+
+    for task in tasks or []:
+        try:
+            suite_task(task)
+        except ValueError as exc:
+            raise typer.BadParameter(_one_line(exc), param_hint="'--tasks'") from exc
+    with _reported("suite", "finished cells are kept; rerun to resume"):
+        from geoq.experiments.suite import run_suite
+
+        path = run_suite(
+            out, tasks or None, scale.value, jobs=jobs, backend=backend.value,
+            scheduler=scheduler, root_seed=seed, progress=progress,
+        )  # fmt: skip
+    typer.echo(f"geoq suite: done; {path}")
 
 
 def main() -> None:

@@ -12,6 +12,12 @@ rewards bounded by ``r_max`` (``1`` for the pendulum) the cut changes ``Q`` by
 at most ``gamma^H r_max / (1 - gamma) < 2e-3``, an order of magnitude below
 the Monte-Carlo standard errors at 100 roll-outs.
 
+**Any task.** Actions are scalars ``[N]`` or vectors ``[N, d_a]``. When the
+step function also returns ``terminated``, a roll-out's return stops
+accumulating at its terminating step (the reward of that step counts, nothing
+after it); the terminated rows keep being stepped and given policy actions,
+masked, so the generator is consumed the same way whatever terminates.
+
 **Uncertainty.** Each estimate comes with its standard error
 ``std(G, ddof=1) / sqrt(R)`` over the ``R`` sampled returns ``G``.
 """
@@ -26,7 +32,14 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import as_float_matrix, as_float_vector
 from geoq.policies import Policy
-from geoq.rollouts import DEFAULT_GAMMA, StartSpec, StepFn, collect_rollouts, resolve_step
+from geoq.rollouts import (
+    DEFAULT_GAMMA,
+    StartSpec,
+    StepFn,
+    collect_rollouts,
+    resolve_step,
+    split_step,
+)
 
 __all__ = [
     "HORIZON_TOLERANCE",
@@ -90,13 +103,14 @@ def mc_q_values(
     Parameters
     ----------
     states : ``[N, d]`` start states.
-    actions : ``[N]`` first actions (clipped by the dynamics like any action).
+    actions : ``[N]`` or ``[N, d_a]`` first actions (clipped by the dynamics like any action).
     policy : the policy followed after the first action.
     rng : the only source of randomness; the same generator state gives the same numbers.
     n_rollouts : roll-outs per pair ``R`` (``>= 2`` for a standard error).
     gamma : discount, in ``[0, 1)``.
     horizon : steps per roll-out; default :func:`mc_horizon` ``(gamma)``.
     step : pure vectorised dynamics; default the pendulum (:func:`geoq.envs.pendulum_step`).
+        If it returns ``terminated``, returns stop at termination (module docstring).
     max_batch : at most this many simulated pendulums (pairs x roll-outs) at once, to
         bound memory; pairs are then processed in consecutive chunks with the same
         generator. Default: all at once. The numbers depend on the chunking (the
@@ -104,7 +118,14 @@ def mc_q_values(
         ``max_batch``.
     """
     S = as_float_matrix(states, "states")
-    A = as_float_vector(actions, "actions", length=S.shape[0])
+    if np.ndim(actions) == 2:
+        A = as_float_matrix(actions, "actions")
+        if A.shape[0] != S.shape[0]:
+            raise ValueError(
+                f"actions has {A.shape[0]} rows; expected {S.shape[0]} (one per state)"
+            )
+    else:
+        A = as_float_vector(actions, "actions", length=S.shape[0])
     if n_rollouts < 2:
         raise ValueError(f"n_rollouts must be >= 2 to estimate a standard error, got {n_rollouts}")
     H = mc_horizon(gamma) if horizon is None else int(horizon)
@@ -142,14 +163,23 @@ def _discounted_mc_returns(
     n = S.shape[0]
     # Pair-major batch: rows i*R .. i*R + R-1 are the roll-outs of pair i.   # [N R, d]
     s = np.repeat(S, n_rollouts, axis=0)
-    a = np.repeat(A, n_rollouts)
+    a = np.repeat(A, n_rollouts, axis=0)  # [N R] or [N R, d_a]
     total = np.zeros(n * n_rollouts)
+    alive: np.ndarray | None = None  # [N R] bool, once the dynamics report termination
     discount = 1.0
     for t in range(horizon):
         if t > 0:
             a = np.asarray(policy(s, rng), dtype=np.float64)
-        s, r = step_fn(s, a)
-        total += discount * r
+        s, r, terminated = split_step(step_fn(s, a), n * n_rollouts)
+        if terminated is None:
+            total += discount * r
+        else:
+            if alive is None:
+                alive = np.ones(n * n_rollouts, dtype=bool)
+            total += discount * np.where(alive, r, 0.0)
+            alive &= ~terminated
+            if not alive.any():
+                break
         discount *= gamma
     return total.reshape(n, n_rollouts)
 
@@ -167,12 +197,12 @@ def sample_evaluation_pairs(
 
     Collects ``n_rollouts`` fresh roll-outs of ``steps`` steps with ``rng``
     (so they are independent of any training roll-outs drawn from another
-    generator), pools their ``n_rollouts * steps`` visited pairs and picks
-    ``n_pairs`` of them uniformly without replacement.
+    generator), pools their ``n_rollouts * steps`` visited pairs (fewer when
+    episodes terminate) and picks ``n_pairs`` of them uniformly without replacement.
 
     Returns
     -------
-    states ``[n_pairs, d]`` and actions ``[n_pairs]``.
+    states ``[n_pairs, d]`` and actions ``[n_pairs]`` (or ``[n_pairs, d_a]``).
     """
     pool = n_rollouts * steps
     if not 1 <= n_pairs <= pool:
@@ -181,6 +211,13 @@ def sample_evaluation_pairs(
             "collect more or longer roll-outs"
         )
     rollouts = collect_rollouts(n_rollouts, steps, policy, rng, start=start, step=step)
+    visited = sum(len(ro) for ro in rollouts)
+    if n_pairs > visited:
+        raise ValueError(
+            f"n_pairs = {n_pairs} exceeds the {visited} pairs the terminating roll-outs "
+            "visited; collect more roll-outs"
+        )
+    pool = visited
     all_states = np.concatenate([ro.states for ro in rollouts], axis=0)
     all_actions = np.concatenate([ro.actions for ro in rollouts])
     idx = np.sort(rng.choice(pool, size=n_pairs, replace=False))

@@ -17,12 +17,14 @@ parallel, one file per finished cell):
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from geoq._typing import FloatArray
 from geoq.baselines.tabular_td import td_baseline
 from geoq.evaluation.metrics import mse, normalized_variance
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
@@ -31,7 +33,7 @@ from geoq.experiments.sweep import cell_key, cell_spec, load_cell
 from geoq.gp import NumericalWarning
 from geoq.learners import GPQFunction, QGPConfig
 from geoq.policies import default_policy
-from geoq.rollouts import collect_rollouts
+from geoq.rollouts import Rollout, collect_rollouts
 
 __all__ = [
     "FIG3_COLUMNS",
@@ -39,6 +41,8 @@ __all__ = [
     "BudgetCell",
     "TruthCell",
     "budget_cell",
+    "load_truth",
+    "score_learner",
     "truth_cell",
 ]
 
@@ -167,6 +171,51 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         rng_for(cell.root_seed, cell.seed, STREAM["train"]),
         gamma=float(cell.truth["gamma"]),
     )
+    row: dict[str, Any] = {"kernel": cell.kernel, "max_bv": cell.max_bv, "seed": cell.seed}
+    row.update(
+        score_learner(
+            config,
+            rollouts,
+            states,
+            actions,
+            mc_mean,
+            np.asarray(truth["mc_stderr"]),
+            td=td,
+            refit_episode=cell.variant == "tuned",
+        )
+    )
+    if cell.variant != "tuned":
+        row["variant"] = cell.variant
+    return row
+
+
+def score_learner(
+    config: QGPConfig,
+    rollouts: Sequence[Rollout],
+    states: FloatArray,
+    actions: FloatArray,
+    mc_mean: FloatArray,
+    mc_stderr: FloatArray,
+    *,
+    td: FloatArray | None = None,
+    refit_episode: bool = True,
+    focus: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """Fit one GP learner on ``rollouts`` and score it at the evaluation pairs: the Fig. 3
+    columns (online posterior, after a DTC refit on its final BV set and graph, and, with
+    ``refit_episode``, a second learner that refits after every roll-out).
+
+    ``states [N, d]`` and ``actions [N]`` / ``[N, d_a]`` are in the learner's input space;
+    ``mc_mean``, ``mc_stderr`` the Monte-Carlo ``Q^pi`` there; ``td`` the TD table's values
+    (column ``mse_td``; left out when ``None``). ``focus``, a boolean mask ``[N]`` of
+    pairs of special interest, adds ``mse_focus`` and ``mse_refit_focus``: the MSEs over
+    those pairs only (NaN when there are none).
+    """
+
+    def focused(mean: FloatArray) -> float:
+        assert focus is not None
+        return mse(mean[focus], mc_mean[focus]) if focus.any() else float("nan")
+
     with warnings.catch_warnings(), np.errstate(over="ignore"):
         # Repairs of the indefinite geodesic Gram are expected; they are counted in the row.
         # A diverged posterior scores an MSE of inf (counted in REPORT.md), not a warning.
@@ -176,28 +225,33 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         prior = learner.prior_variance(states, actions)
         mean, std = learner.predict(states, actions, return_std=True)
         diag = learner.gp_.diagnostics
-        row = {
-            "kernel": cell.kernel,
-            "max_bv": cell.max_bv,
-            "seed": cell.seed,
+        row: dict[str, Any] = {
             "mse": mse(mean, mc_mean),
             "normalized_variance": normalized_variance(std**2, prior),
             "n_bv": int(learner.gp_.n_bv),
-            "mse_td": mse(mean, td),
-            # The trivial baseline: predict the mean training return everywhere.
-            "mse_constant": mse(np.full_like(mc_mean, learner.y_mean_), mc_mean),
-            "mc_noise_floor": float(np.mean(np.asarray(truth["mc_stderr"]) ** 2)),
-            "negative_novelty": int(diag.negative_novelty),
-            "variance_clipped": int(diag.variance_clipped),
-            "eig_clips": int(diag.eig_clips),
-            "q_resyncs": int(diag.q_resyncs),
         }
+        if td is not None:
+            row["mse_td"] = mse(mean, td)
+        if focus is not None:
+            row["mse_focus"] = focused(mean)
+        row.update(
+            {
+                # The trivial baseline: predict the mean training return everywhere.
+                "mse_constant": mse(np.full_like(mc_mean, learner.y_mean_), mc_mean),
+                "mc_noise_floor": float(np.mean(np.asarray(mc_stderr) ** 2)),
+                "negative_novelty": int(diag.negative_novelty),
+                "variance_clipped": int(diag.variance_clipped),
+                "eig_clips": int(diag.eig_clips),
+                "q_resyncs": int(diag.q_resyncs),
+            }
+        )
         learner.refit()
         mean, std = learner.predict(states, actions, return_std=True)
         row["mse_refit"] = mse(mean, mc_mean)
         row["normalized_variance_refit"] = normalized_variance(std**2, prior)
-        if cell.variant != "tuned":
-            row["variant"] = cell.variant
+        if focus is not None:
+            row["mse_refit_focus"] = focused(mean)
+        if not refit_episode:
             return row
         # A refit after every roll-out changes what the later online updates start from:
         # a different learner, fitted again on the same data.

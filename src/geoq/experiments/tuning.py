@@ -23,12 +23,13 @@ from __future__ import annotations
 
 import itertools
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from geoq._typing import FloatArray
 from geoq.evaluation.metrics import mse
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
 from geoq.experiments.config import ReproConfig
@@ -37,7 +38,7 @@ from geoq.gp import NumericalWarning
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.learners import GPQFunction, QGPConfig
 from geoq.policies import GaussianPolicy
-from geoq.rollouts import collect_rollouts
+from geoq.rollouts import Rollout, collect_rollouts
 
 __all__ = [
     "EQ5_VARIANTS",
@@ -49,6 +50,8 @@ __all__ = [
     "SIGMA_SP_GRID",
     "TUNING_COLUMNS",
     "TuningResult",
+    "evidence_config",
+    "select_by_validation",
     "tune",
 ]
 
@@ -144,41 +147,9 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
         rng_for(cfg.root_seed, STREAM["tuning"], 0),
         gamma=cfg.gamma,
     )
-    # Evidence maximisation on the standardised training targets (what the GP sees).
-    probe = GPQFunction(base.replace(kernel="euclidean"))
-    X = np.vstack([probe.inputs(ro.states, ro.actions) for ro in rollouts])
-    y = np.concatenate([ro.returns for ro in rollouts])
-    z = (y - y.mean()) / (y.std() or 1.0)
-    # tune() hides NumericalWarning; the fit's own warnings are recorded instead.
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", NumericalWarning)
-        fit = fit_squared_exponential(
-            X,
-            z,
-            ard=True,
-            max_points=500,
-            n_restarts=EVIDENCE_RESTARTS,
-            rng=rng_for(cfg.root_seed, STREAM["tuning"], 1),
-        )
-    lengthscale = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (X.shape[1],)))
-    shared = base.replace(amplitude=float(fit.kernel.variance), noise=float(fit.noise))
-    evidence = {
-        "lengthscale": list(lengthscale),
-        "amplitude": float(fit.kernel.variance),
-        "noise": float(fit.noise),
-        "log_evidence": float(fit.log_evidence),
-        "n_points": int(fit.n_used),
-        "log_evidence_start": float(fit.log_evidence_start),
-        "n_restarts": int(fit.n_restarts),
-        "log_evidence_runs": [float(v) for v in fit.log_evidence_runs],
-        "converged": bool(fit.converged),
-        "at_bound": list(fit.at_bound),
-        "warnings": [str(w.message) for w in caught if issubclass(w.category, NumericalWarning)],
-    }
-    for w in caught:  # anything else goes on to the caller
-        if not issubclass(w.category, NumericalWarning):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    configs = {"euclidean": shared.replace(kernel="euclidean", lengthscale=lengthscale)}
+    shared, evidence = evidence_config(rollouts, base, rng_for(cfg.root_seed, STREAM["tuning"], 1))
+    configs = {"euclidean": shared.replace(kernel="euclidean")}
+    shared = shared.replace(lengthscale=base.lengthscale)
 
     # Held-out validation for the geodesic kernels.
     states, actions = sample_evaluation_pairs(
@@ -200,38 +171,110 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
     for method in GRAPH_KERNELS:
         if method not in cfg.kernels:
             continue
-        best: tuple[float, QGPConfig] | None = None
-        for candidate in _candidates(method, cfg, shared):
-            # Scored after a refit on the final BV set and graph: the online posterior
-            # of a graph kernel is stale (its Gram changes as the graph grows), and
-            # the hyper-parameters should measure the kernel, not that staleness.
-            learner = GPQFunction(candidate.replace(refit="end")).fit(rollouts)
-            err = mse(learner.predict(states, actions), truth)
-            assert learner.gp_ is not None
-            record = {c: getattr(candidate, c) for c in TUNING_COLUMNS[1:-2]}
-            validation.append(
-                {"kernel": method, **record, "n_bv": learner.gp_.n_bv, "val_mse": err}
-            )
-            if np.isfinite(err) and (best is None or err < best[0]):
-                best = (err, candidate)
-        if best is None:
-            raise RuntimeError(f"every {method} candidate gave a non-finite validation MSE")
-        configs[method] = best[1].replace(max_bv=base.max_bv)
+        best, records = select_by_validation(
+            method, rollouts, states, actions, truth, shared, cfg.graph_eps, cfg.tune_max_bv
+        )
+        validation.extend(records)
+        configs[method] = best.replace(max_bv=base.max_bv)
     return TuningResult(configs, evidence, validation)
 
 
-def _candidates(method: str, cfg: ReproConfig, shared: QGPConfig) -> Iterator[QGPConfig]:
+def evidence_config(
+    rollouts: Sequence[Rollout], base: QGPConfig, rng: np.random.Generator
+) -> tuple[QGPConfig, dict[str, Any]]:
+    """SE length-scales, prior variance and noise by maximum exact-GP evidence.
+
+    The evidence is that of the standardised training targets (what the GP sees) at the
+    scaled inputs of ``rollouts``, on a subsample of at most 500 points, from the
+    data-driven start plus :data:`EVIDENCE_RESTARTS` restarts drawn with ``rng``.
+
+    Returns ``base`` with the fitted ``lengthscale``, ``amplitude`` and ``noise``, and the
+    evidence record (:data:`EVIDENCE_KEYS`). The fit's :class:`NumericalWarning` are
+    recorded there, not shown; other warnings go on to the caller.
+    """
+    probe = GPQFunction(base.replace(kernel="euclidean"))
+    X = np.vstack([probe.inputs(ro.states, ro.actions) for ro in rollouts])
+    y = np.concatenate([ro.returns for ro in rollouts])
+    z = (y - y.mean()) / (y.std() or 1.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NumericalWarning)
+        fit = fit_squared_exponential(
+            X, z, ard=True, max_points=500, n_restarts=EVIDENCE_RESTARTS, rng=rng
+        )
+    lengthscale = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (X.shape[1],)))
+    shared = base.replace(
+        amplitude=float(fit.kernel.variance), noise=float(fit.noise), lengthscale=lengthscale
+    )
+    evidence = {
+        "lengthscale": list(lengthscale),
+        "amplitude": float(fit.kernel.variance),
+        "noise": float(fit.noise),
+        "log_evidence": float(fit.log_evidence),
+        "n_points": int(fit.n_used),
+        "log_evidence_start": float(fit.log_evidence_start),
+        "n_restarts": int(fit.n_restarts),
+        "log_evidence_runs": [float(v) for v in fit.log_evidence_runs],
+        "converged": bool(fit.converged),
+        "at_bound": list(fit.at_bound),
+        "warnings": [str(w.message) for w in caught if issubclass(w.category, NumericalWarning)],
+    }
+    for w in caught:  # anything else goes on to the caller
+        if not issubclass(w.category, NumericalWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return shared, evidence
+
+
+def select_by_validation(
+    method: str,
+    rollouts: Sequence[Rollout],
+    states: FloatArray,
+    actions: FloatArray,
+    truth: FloatArray,
+    shared: QGPConfig,
+    graph_eps: Sequence[float],
+    tune_max_bv: int,
+) -> tuple[QGPConfig, list[dict[str, Any]]]:
+    """The candidate of graph kernel ``method`` with the lowest validation MSE.
+
+    Every candidate of the grid (:func:`_candidates`) is fitted to ``rollouts`` with
+    budget ``tune_max_bv`` and scored by its MSE against ``truth`` (Monte-Carlo
+    ``Q^pi``) at the held-out pairs ``states``, ``actions`` (in the learner's input
+    space), after a refit on the final BV set and graph. Returns the best candidate
+    (its ``max_bv`` is ``tune_max_bv``) and one record per candidate
+    (:data:`TUNING_COLUMNS`). ``RuntimeError`` if every candidate diverged.
+    """
+    best: tuple[float, QGPConfig] | None = None
+    validation: list[dict[str, Any]] = []
+    for candidate in _candidates(method, graph_eps, tune_max_bv, shared):
+        # Scored after a refit on the final BV set and graph: the online posterior
+        # of a graph kernel is stale (its Gram changes as the graph grows), and
+        # the hyper-parameters should measure the kernel, not that staleness.
+        learner = GPQFunction(candidate.replace(refit="end")).fit(rollouts)
+        err = mse(learner.predict(states, actions), truth)
+        assert learner.gp_ is not None
+        record = {c: getattr(candidate, c) for c in TUNING_COLUMNS[1:-2]}
+        validation.append({"kernel": method, **record, "n_bv": learner.gp_.n_bv, "val_mse": err})
+        if np.isfinite(err) and (best is None or err < best[0]):
+            best = (err, candidate)
+    if best is None:
+        raise RuntimeError(f"every {method} candidate gave a non-finite validation MSE")
+    return best[1], validation
+
+
+def _candidates(
+    method: str, graph_eps: Sequence[float], tune_max_bv: int, shared: QGPConfig
+) -> Iterator[QGPConfig]:
     """The validation grid of one graph kernel."""
     if method == "resistance":
-        for eps, length in itertools.product(cfg.graph_eps, RESISTANCE_LENGTHSCALE_GRID):
+        for eps, length in itertools.product(graph_eps, RESISTANCE_LENGTHSCALE_GRID):
             yield shared.replace(
-                kernel=method, eps=eps, resistance_lengthscale=length, max_bv=cfg.tune_max_bv
+                kernel=method, eps=eps, resistance_lengthscale=length, max_bv=tune_max_bv
             )
         return
     se_grid = SIGMA_SE_GRID if method == "interpolated" else (shared.sigma_se,)
     variants = EQ5_VARIANTS if method == "interpolated" else ((False, False),)
     for eps, sigma_sp, sigma_se, (normalize, attach) in itertools.product(
-        cfg.graph_eps, SIGMA_SP_GRID, se_grid, variants
+        graph_eps, SIGMA_SP_GRID, se_grid, variants
     ):
         yield shared.replace(
             kernel=method,
@@ -240,5 +283,5 @@ def _candidates(method: str, cfg: ReproConfig, shared: QGPConfig) -> Iterator[QG
             sigma_se=sigma_se,
             normalize_weights=normalize,
             attach_weights=attach,
-            max_bv=cfg.tune_max_bv,
+            max_bv=tune_max_bv,
         )

@@ -1,14 +1,18 @@
-"""GPQAgent speed: one environment step (act + online update), a fitted-Q phase, predict.
+"""GPQAgent speed: one environment step (act + online update), a fitted-Q phase, predict,
+and the cost of each replay mode per episode.
 
 Goals (issue 9): one step of ``learn`` (act + update, amortised fitted-Q phases
 included) <= 2 ms at 200 BVs; ``predict`` <= 1 ms; 10,000 steps in under a
-minute. Baselines in the same process: the GP's own ``predict`` on the same
+minute. Replay (issue 11): a phase with ``replay="graph"`` against ``"uniform"``
+on the same stored transitions, per 250-step episode (goal: graph replay under 1 s
+per episode at 200 BVs). Baselines in the same process: the GP's own ``predict`` on the same
 candidate batch and ``update`` of one point (the floor an agent step cannot go
 below), and the raw swing-up env step.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 
@@ -54,6 +58,17 @@ def main() -> None:
         print(
             f"{max_bv:>6} {1e3 * t_learn:>14.2f} {1e3 * t_train * phases / n:>20.2f} "
             f"{1e3 * t_predict:>11.2f} {1e3 * t_gp:>21.2f} {t_learn / t_gp:>10.1f}x"
+        )
+        replay_costs = []
+        default = agent.config
+        for replay in ("none", "uniform", "graph"):  # same transitions, same basis
+            agent.config = dataclasses.replace(default, replay=replay)
+            replay_costs.append(_per_call(agent.train, 2))
+        agent.config = default
+        print(
+            f"{'':>6} phase on {n} transitions (one per 250-step episode): none "
+            f"{replay_costs[0]:.2f} s, uniform {replay_costs[1]:.2f} s, graph "
+            f"{replay_costs[2]:.2f} s ({replay_costs[2] / replay_costs[1]:.1f}x uniform)"
         )
 
 

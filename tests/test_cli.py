@@ -249,3 +249,13 @@ def test_jobs_above_the_core_count_are_capped_with_a_warning(
     assert "warning: --jobs=64 is more than the 2 core(s)" in result.output
     result = _invoke("reproduce", "--out", str(tmp_path / "o"), "--jobs", "2")
     assert recorded[1]["jobs"] == 2 and "warning" not in result.output
+
+
+def test_a_custom_scale_label_is_kept_but_another_preset_name_is_refused() -> None:
+    from geoq.experiments.config import config_for_scale, config_with_overrides
+
+    base = config_for_scale("quick")
+    assert config_with_overrides(base, {"scale": "tiny", "seeds": 1}).scale == "tiny"
+    assert config_with_overrides(base, {"scale": "quick"}).scale == "quick"
+    with pytest.raises(ValueError, match="differs from the preset"):
+        config_with_overrides(base, {"scale": "paper"})

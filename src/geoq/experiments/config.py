@@ -261,8 +261,9 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
     if unknown:
         raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
     changes = dict(overrides)
-    if "scale" in changes and changes["scale"] != base.scale:
-        # The report and config.json name the scale: it must be the one that ran.
+    if "scale" in changes and changes["scale"] in SCALES and changes["scale"] != base.scale:
+        # The report and config.json name the scale: a preset's name must be the preset
+        # that ran. Any other name labels this configuration (e.g. the tests' "tiny").
         raise ValueError(
             f"scale {changes['scale']!r} in the configuration differs from the preset "
             f"{base.scale!r} it overrides; choose the preset with --scale"

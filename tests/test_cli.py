@@ -189,6 +189,8 @@ def test_console_script_entry_point() -> None:
         ('{"learner": {"eps": 1.5}}', "learner.eps"),
         ('{"learner": {"scaling": {"scale": [1]}}}', "learner.scaling"),
         ('{"learner": {"lengthscale": [1, 2]}}', "learner.lengthscale"),
+        ('{"learner": {"kernel": "resistance"}}', "learner.kernel"),
+        ('{"learner": {"max_bv": 30}}', "learner.max_bv"),
         ('{"budgets": [5, 7.5]}', "budgets[1]"),
         ('{"budgets": [5, 5]}', "budgets"),
         ('{"budgets": [5, 100000]}', "budgets[1]"),

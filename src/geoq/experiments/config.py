@@ -261,7 +261,8 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
     if unknown:
         raise ValueError(f"unknown configuration field(s) {unknown}; known: {sorted(known)}")
     changes = dict(overrides)
-    if "scale" in changes and changes["scale"] in SCALES and changes["scale"] != base.scale:
+    label = changes.get("scale")
+    if isinstance(label, str) and label in SCALES and label != base.scale:
         # The report and config.json name the scale: a preset's name must be the preset
         # that ran. Any other name labels this configuration (e.g. the tests' "tiny").
         raise ValueError(
@@ -277,6 +278,14 @@ def config_with_overrides(base: ReproConfig, overrides: Mapping[str, Any]) -> Re
         learner = changes["learner"]
         if not isinstance(learner, Mapping):
             raise ValueError(f"learner must be an object of learner fields, got {learner!r}")
+        per_cell = {"kernel": "kernels", "max_bv": "budgets"}.items()
+        for key, instead in per_cell:
+            # Every cell sets its own: another value would be silently lost (the value of
+            # a config.json written by geoq reproduce is the base's, and is accepted).
+            if key in learner and learner[key] != getattr(base.learner, key):
+                raise ValueError(
+                    f"learner.{key} is set per sweep cell; choose them with '{instead}'"
+                )
         try:
             changes["learner"] = QGPConfig.from_dict({**base.learner.as_dict(), **learner})
         except (ValueError, TypeError) as exc:

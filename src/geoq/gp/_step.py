@@ -247,17 +247,11 @@ def _step(  # pragma: no cover - compiled
         if score < best_score:
             best_score = score
             best = a
+    # No finite score (no positive diag(Q + C), or alpha_i^2 overflowed: a diverged
+    # posterior or huge targets over a tiny noise): delete the newest point, counted.
+    # Ranking by log-scores instead was tried: on diverged geodesic posteriors it
+    # deleted old BVs and turned the quick reproduction's predictions into NaN.
     if best < 0:
-        # Every score overflowed (alpha_i^2 > 1.8e308: huge targets over a tiny noise):
-        # the same order by log-scores, which cannot overflow.
-        for a in range(m1):
-            if mdiag[a] <= 0.0:
-                continue
-            score = 2.0 * np.log(abs(alpha[a])) - np.log(mdiag[a])
-            if best < 0 or score < best_score:
-                best_score = score
-                best = a
-    if best < 0:  # no positive diag(Q + C): drifted scores; delete the newest point
         counters[_SCORECLIP] += 1
         best = m
     i = best

@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
+from geoq.envs._reset import start_option
 from geoq.envs.two_rooms import (
     TWO_ROOMS_START_NOISE,
     sample_two_rooms_starts,
@@ -127,12 +128,7 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
     ) -> tuple[FloatArray, dict[str, Any]]:
         """Start an episode near ``(0.25, 0.2)`` (seeded noise) or at ``options["state"]``."""
         super().reset(seed=seed)
-        options = {} if options is None else dict(options)
-        start = options.pop("state", None)
-        if options:
-            raise ValueError(
-                f"unknown reset option(s) {sorted(options)}; the only option is 'state'"
-            )
+        start = start_option(options)
         if start is None:
             self.state = sample_two_rooms_starts(self.np_random, 1, self.start_noise)[0]
         else:

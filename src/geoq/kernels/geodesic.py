@@ -292,8 +292,8 @@ class GraphDistance(BasisGraphDistance):
         self.normalize = bool(normalize)
         self.attach = bool(attach)
         self._split_cache: tuple[int, FloatArray, FloatArray, bool] | None = None
-        scr = np.empty((4, 0))  # rows: r2, log_rel, exp argument, exponent
-        self._row_views = (scr[0], scr[1], scr[2], scr[3], scr)
+        #: Scratch rows of :meth:`row_exponent`: r2, log_rel, exp argument, exponent.
+        self._row_scratch = np.empty((4, 0))
 
     @property
     def _P(self) -> FloatArray:
@@ -408,11 +408,12 @@ class GraphDistance(BasisGraphDistance):
         d = x.shape[0]
         if n < 2 or n != m or g._dim != d:
             return None
-        rows = self._row_views
-        if rows[0].shape[0] < n:
-            scr = np.empty((4, g._cap))
-            rows = self._row_views = (scr[0], scr[1], scr[2], scr[3], scr)
-        r2, log_rel, arg, out, scr = rows
+        scr = self._row_scratch
+        if scr.shape[1] < n:
+            scr = self._row_scratch = np.empty((4, g._cap))
+        # Views made here, not stored: a deep copy (the GP's all-or-nothing snapshot)
+        # would turn stored views into arrays independent of ``scr``.
+        r2, log_rel, arg, out = scr[0], scr[1], scr[2], scr[3]
         period = g.period if g.period is not None else g._period_or_zeros(d)
         if self.method == "nearest":
             squared = g.edge_weight == "squared"

@@ -181,3 +181,19 @@ def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Pa
     assert agent.rescales >= 2 and loaded.rescales == agent.rescales  # warm-up + growth
     obs = np.linspace(-1, 1, 7)[:, None]
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+
+
+def test_declared_reward_bounds_set_the_value_bounds_from_the_first_step() -> None:
+    agent = _agent(reward_bounds=(-1.0, 0.5))  # gamma 0.9
+    assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
+    agent.learn(40)  # PointToGoal pays -1 per step: inside the declared range, no change
+    assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
+    assert _agent().learn(40).value_bounds() == pytest.approx((-10.0, -1.0))  # seen only
+    car = GPQAgent("MountainCarContinuous-v0", max_bv=10)  # a known range: the flag's +100
+    assert car.reward_range == (-0.1, 100.0)
+    assert car.value_bounds()[1] == pytest.approx(100.0 / (1.0 - car.config.gamma))
+    config = GPQConfig(reward_bounds=(-2.0, 3.0))
+    assert GPQConfig.from_dict(config.as_dict()) == config
+    for bad in ((1.0, -1.0), (0.0, np.inf), (0.0,), "ab", (True, 1.0)):
+        with pytest.raises(ValueError, match="reward_bounds"):
+            GPQConfig(reward_bounds=bad)  # type: ignore[arg-type]

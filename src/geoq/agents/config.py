@@ -99,6 +99,13 @@ class GPQConfig:
     replay_eps: float = 0.9
     """JC12 eq. 2 threshold of the replay graph: two state-action pairs are linked when
     their squared-exponential similarity in length-scale units exceeds it."""
+    reward_bounds: tuple[float, float] | None = None
+    """Declared range ``(r_min, r_max)`` of one step's reward. The value bounds (and so
+    the optimistic prior) start from it instead of from the rewards seen so far;
+    rewards outside it still widen them. ``None``: the task's known range (Gymnasium's
+    ``MountainCarContinuous-v0`` and ``Pendulum-v1``, :data:`geoq.tasks.KNOWN_TASKS`), else
+    only the rewards seen. Without it a task whose reward arrives late (the mountain
+    car's +100 at the flag) has an optimistic prior of 0, the value of doing nothing."""
     prior: Prior = "optimistic"
     """What the GP assumes of ``Q`` where it has no data (the standardisation
     ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
@@ -137,6 +144,21 @@ class GPQConfig:
             _check_real(getattr(self, name), name, strict=True)
         if not 0.0 <= self.tol <= 1.0:
             raise ValueError(f"tol must be in [0, 1], got {self.tol!r}")
+        if self.reward_bounds is not None:
+            rb = self.reward_bounds
+            ok = (
+                isinstance(rb, tuple | list)
+                and len(rb) == 2
+                and all(
+                    isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+                    for v in rb
+                )
+            )
+            if not ok or rb[0] > rb[1]:
+                raise ValueError(
+                    f"reward_bounds must be two finite numbers (r_min, r_max) with "
+                    f"r_min <= r_max, got {rb!r}"
+                )
         if self.lengthscale is not None:
             ls = np.atleast_1d(np.asarray(self.lengthscale, dtype=np.float64))
             if not (np.all(np.isfinite(ls)) and np.all(ls > 0)):
@@ -145,8 +167,9 @@ class GPQConfig:
     def as_dict(self) -> dict[str, Any]:
         """JSON-able representation."""
         out = asdict(self)
-        if isinstance(self.lengthscale, tuple):
-            out["lengthscale"] = list(self.lengthscale)
+        for name in ("lengthscale", "reward_bounds"):
+            if isinstance(getattr(self, name), tuple):
+                out[name] = list(getattr(self, name))
         return out
 
     @classmethod
@@ -157,8 +180,9 @@ class GPQConfig:
         if unknown:
             raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
         d = dict(data)
-        if isinstance(d.get("lengthscale"), list):
-            d["lengthscale"] = tuple(float(v) for v in d["lengthscale"])
+        for name in ("lengthscale", "reward_bounds"):
+            if isinstance(d.get(name), list):
+                d[name] = tuple(d[name])
         return cls(**d)
 
 

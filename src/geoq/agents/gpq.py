@@ -169,7 +169,11 @@ class GPQAgent:
         self.gp = self._new_gp()
         self.buffer = TransitionBuffer(self.obs_dim, self.action_dim)
         self.y_mean, self.y_scale = 0.0, 1.0 / (1.0 - self.config.gamma)
-        self.reward_range = (np.inf, -np.inf)
+        declared = self.config.reward_bounds or info.reward_range
+        #: Extreme rewards (declared, then widened by those seen); see :meth:`value_bounds`.
+        self.reward_range: tuple[float, float] = (
+            (float(declared[0]), float(declared[1])) if declared else (np.inf, -np.inf)
+        )
         self.num_timesteps = 0
         self.episodes: list[EpisodeRecord] = []
         self.fitted_q_sweeps: list[int] = []

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
-from geoq.envs._reset import start_option
+from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.pendulum import (
     START_NOISE,
     PendulumParams,
@@ -188,18 +188,10 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         return next_state.copy(), float(reward), False, False, info
 
     def _horizon(self) -> int:
-        limit = self.spec.max_episode_steps if self.spec is not None else None
-        return int(limit) if limit is not None else _DEFAULT_HORIZON
+        return episode_horizon(self.spec, _DEFAULT_HORIZON)
 
     def _check_state(self, state: Any) -> FloatArray:
-        try:
-            s = np.asarray(state, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"options['state'] must be numeric [theta, omega]: {exc}") from exc
-        if s.shape != (2,):
-            raise ValueError(f"options['state'] has shape {s.shape}; expected (2,) [theta, omega]")
-        if not np.isfinite(s).all():
-            raise ValueError(f"options['state'] = {s.tolist()} is not finite")
+        s = numeric_start_state(state, ("theta", "omega"))
         theta, omega = s
         if abs(theta) > np.pi or abs(omega) > self.params.max_speed:
             raise ValueError(

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
-from geoq.envs._reset import start_option
+from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.two_rooms import (
     TWO_ROOMS_START_NOISE,
     sample_two_rooms_starts,
@@ -162,18 +162,10 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
         return next_state.copy(), float(reward), done, False, info
 
     def _horizon(self) -> int:
-        limit = self.spec.max_episode_steps if self.spec is not None else None
-        return int(limit) if limit is not None else _DEFAULT_HORIZON
+        return episode_horizon(self.spec, _DEFAULT_HORIZON)
 
     def _check_state(self, state: Any) -> FloatArray:
-        try:
-            s = np.asarray(state, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"options['state'] must be numeric [x, y]: {exc}") from exc
-        if s.shape != (2,):
-            raise ValueError(f"options['state'] has shape {s.shape}; expected (2,) [x, y]")
-        if not np.isfinite(s).all():
-            raise ValueError(f"options['state'] = {s.tolist()} is not finite")
+        s = numeric_start_state(state, ("x", "y"))
         if np.any(s < 0.0) or np.any(s > 1.0):
             raise ValueError(
                 f"options['state'] = {s.tolist()} is outside the unit square; "

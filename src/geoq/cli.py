@@ -36,7 +36,7 @@ Heavy imports (numpy, the experiments) happen inside the commands, so that
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
@@ -400,6 +400,15 @@ def evaluate(
     typer.echo(result.summary())
 
 
+def _check_choices(values: list[str] | None, allowed: Sequence[str], option: str) -> None:
+    """A usage error (exit 2) for the first of ``values`` that is not in ``allowed``."""
+    for value in values or []:
+        if value not in allowed:
+            raise typer.BadParameter(
+                f"{value!r} is not one of {tuple(allowed)}", param_hint=f"'{option}'"
+            )
+
+
 @app.command("bench-control")
 def bench_control(
     out: Annotated[Path, typer.Option("--out", file_okay=False, help="Output directory.")] = Path(
@@ -461,21 +470,11 @@ def bench_control(
 
     if scheduler is not None and backend is not Backend.dask:
         raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
-    for mode in explorations or []:
-        if mode not in EXPLORATION_MODES:
-            raise typer.BadParameter(
-                f"{mode!r} is not one of {EXPLORATION_MODES}", param_hint="'--exploration'"
-            )
-    for mode in replays or []:
-        if mode not in REPLAYS:
-            raise typer.BadParameter(f"{mode!r} is not one of {REPLAYS}", param_hint="'--replay'")
     from geoq.experiments.sac_baseline import BASELINES
 
-    for name in baselines or []:
-        if name not in BASELINES:
-            raise typer.BadParameter(
-                f"{name!r} is not one of {BASELINES}", param_hint="'--baseline'"
-            )
+    _check_choices(explorations, EXPLORATION_MODES, "--exploration")
+    _check_choices(replays, REPLAYS, "--replay")
+    _check_choices(baselines, BASELINES, "--baseline")
     _check_out(out)
     jobs = _capped_jobs(jobs, scheduler)
     base = _agent_config(config)

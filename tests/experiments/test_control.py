@@ -133,3 +133,12 @@ def test_success_of_tasks_without_is_success_is_a_mean_return_threshold() -> Non
     assert math.isnan(evaluation_success(Evaluation(np.zeros(2), np.full(2, np.nan)), "X-v0"))
     text = control_report([], "t", env_id="MountainCarContinuous-v0")
     assert "mean return is >= 90" in text
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("--replay", "graf"), ("--exploration", "eps"), ("--baseline", "ppo")]
+)
+def test_bench_control_refuses_unknown_choices(tmp_path: Path, option: str, value: str) -> None:
+    result = RUNNER.invoke(app, ["bench-control", "--out", str(tmp_path / "b"), option, value])
+    assert result.exit_code == 2
+    assert f"'{value}' is not one of" in result.output and option in result.output

@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from geoq._typing import FloatArray
 from geoq.evaluation.metrics import mse
-from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
+from geoq.evaluation.monte_carlo import MCEstimate, mc_q_values, sample_evaluation_pairs
 from geoq.experiments.fig3 import load_truth, score_learner
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.tuning import evidence_config, select_by_validation
@@ -92,6 +93,31 @@ def tune_cell(cell: TuneCell) -> dict[str, Any]:
         return _tune_cell(cell)
 
 
+def _pairs_with_truth(
+    task: SuiteTask,
+    n_pairs: int,
+    n_pair_rollouts: int,
+    pair_rng: np.random.Generator,
+    mc_rollouts: int,
+    mc_rng: np.random.Generator,
+) -> tuple[FloatArray, FloatArray, MCEstimate]:
+    """State-action pairs from roll-outs of the task's policy and their Monte-Carlo ``Q^pi``."""
+    states, actions = sample_evaluation_pairs(
+        n_pairs,
+        task.policy,
+        pair_rng,
+        n_rollouts=n_pair_rollouts,
+        steps=task.rollout_steps,
+        start=task.sample_starts,
+        step=task.step,
+    )
+    mc = mc_q_values(
+        states, actions, task.policy, mc_rng, n_rollouts=mc_rollouts, gamma=task.gamma,
+        step=task.step,
+    )  # fmt: skip
+    return states, actions, mc
+
+
 def _tune_cell(cell: TuneCell) -> dict[str, Any]:
     task = suite_task(cell.task)
     rollouts = observe_rollouts(
@@ -105,24 +131,15 @@ def _tune_cell(cell: TuneCell) -> dict[str, Any]:
     assert cell.shared is not None
     shared = QGPConfig.from_dict(cell.shared)
     shared = shared.replace(lengthscale=QGPConfig.from_dict(cell.learner).lengthscale)
-    states, actions = sample_evaluation_pairs(
+    states, actions, mc = _pairs_with_truth(
+        task,
         cell.tune_pairs,
-        task.policy,
+        max(2, cell.eval_rollouts // 2),
         task_rng(cell.root_seed, cell.task, 2),
-        n_rollouts=max(2, cell.eval_rollouts // 2),
-        steps=task.rollout_steps,
-        start=task.sample_starts,
-        step=task.step,
-    )
-    truth = mc_q_values(
-        states,
-        actions,
-        task.policy,
+        cell.tune_mc_rollouts,
         task_rng(cell.root_seed, cell.task, 3),
-        n_rollouts=cell.tune_mc_rollouts,
-        gamma=task.gamma,
-        step=task.step,
-    ).mean
+    )
+    truth = mc.mean
     best, records = select_by_validation(
         cell.kernel,
         rollouts,
@@ -151,23 +168,13 @@ class TruthCell:
 def truth_cell(cell: TruthCell) -> dict[str, Any]:
     """Internal states, actions, Monte-Carlo mean and standard error at the evaluation pairs."""
     task = suite_task(cell.task)
-    states, actions = sample_evaluation_pairs(
+    states, actions, mc = _pairs_with_truth(
+        task,
         cell.eval_pairs,
-        task.policy,
+        cell.eval_rollouts,
         task_rng(cell.root_seed, cell.task, cell.seed, STREAM["eval_pairs"]),
-        n_rollouts=cell.eval_rollouts,
-        steps=task.rollout_steps,
-        start=task.sample_starts,
-        step=task.step,
-    )
-    mc = mc_q_values(
-        states,
-        actions,
-        task.policy,
+        cell.mc_rollouts,
         task_rng(cell.root_seed, cell.task, cell.seed, STREAM["monte_carlo"]),
-        n_rollouts=cell.mc_rollouts,
-        gamma=task.gamma,
-        step=task.step,
     )
     return {
         "states": states.tolist(),

@@ -256,7 +256,12 @@ class GaussianOfDistance(Kernel):
         return np.full(X.shape[0], self.variance)
 
     def to_basis(self, X: FloatArray, basis: FloatArray) -> FloatArray:
-        return self.variance * np.exp(-0.5 * self.distance.squared_to_basis(X, basis))
+        # One temporary, not three (the fitted-Q phases call this on [N K, m]); the
+        # distance array may be a cache of the distance object, so it is not overwritten.
+        out = -0.5 * self.distance.squared_to_basis(X, basis)
+        np.exp(out, out=out)
+        out *= self.variance
+        return out
 
     def basis_gram(self, basis: FloatArray) -> FloatArray:
         return self.to_basis(basis, basis)

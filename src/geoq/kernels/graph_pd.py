@@ -68,6 +68,7 @@ from geoq._threads import one_blas_thread, single_blas_thread
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import check_positive
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels._graph_paths import pendant_distances
 from geoq.kernels._resistance import (
     add_edges,
     components_of,
@@ -75,7 +76,8 @@ from geoq.kernels._resistance import (
     parallel_part,
     remove_node_resistances,
 )
-from geoq.kernels.geodesic import BasisGraphDistance, GraphKernel, pendant_distances
+from geoq.kernels.geodesic import GraphKernel
+from geoq.kernels.graph_distance import BasisGraphDistance
 
 __all__ = [
     "ResistanceDistance",

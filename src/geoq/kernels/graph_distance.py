@@ -121,11 +121,11 @@ class BasisGraphDistance(Distance):
             return False
         if n == 0:
             return True
-        nodes = g._X[:n]
+        nodes = g.nodes_view
         if basis.shape != nodes.shape:
             return False
         if basis.dtype == np.float64 and basis.ndim == 2:
-            return bool(rows_equal(basis, g._X, n))  # np.array_equal without its overhead
+            return bool(rows_equal(basis, nodes, n))  # np.array_equal without its overhead
         return bool(np.array_equal(basis, nodes))
 
     def follows_basis(self, basis: FloatArray) -> bool:
@@ -205,8 +205,7 @@ class GraphDistance(BasisGraphDistance):
 
     @property
     def _P(self) -> FloatArray:
-        n = self.graph.n_nodes
-        return self.graph._P[:n, :n]
+        return self.graph.shortest_paths_view
 
     def _split(self) -> tuple[FloatArray, FloatArray, bool]:
         """``split_unreachable(P)`` and whether any pair is unreachable, cached until the
@@ -312,25 +311,26 @@ class GraphDistance(BasisGraphDistance):
         path must be used (fewer than two nodes, basis out of sync, another dimension).
         """
         g = self.graph
-        n = g._n
+        n = g.n_nodes
         d = x.shape[0]
-        if n < 2 or n != m or g._dim != d:
+        if n < 2 or n != m or g.dim != d:
             return None
         scr = self._row_scratch
         if scr.shape[1] < n:
-            scr = self._row_scratch = np.empty((4, g._cap))
+            scr = self._row_scratch = np.empty((4, 2 * n))  # grows geometrically
         # Views made here, not stored: a deep copy (the GP's all-or-nothing snapshot)
         # would turn stored views into arrays independent of ``scr``.
         r2, log_rel, arg, out = scr[0], scr[1], scr[2], scr[3]
-        period = g.period if g.period is not None else g._period_or_zeros(d)
+        period = g.period_or_zeros(d)
+        nodes, P = g.nodes_view, g.shortest_paths_view  # [n, d], [n, n]
         if self.method == "nearest":
             squared = g.edge_weight == "squared"
             ok = nearest_row_exponent(
-                x, g._X, n, basis, period, squared, g._P, self.sigma_sp, r2, out
+                x, nodes, n, basis, period, squared, P, self.sigma_sp, r2, out
             )
             return out[:m] if ok else None
         a = interpolated_row_prepare(
-            x, g._X, n, basis, period, 2.0 * self.sigma_se, self.normalize, r2, log_rel, arg
+            x, nodes, n, basis, period, 2.0 * self.sigma_se, self.normalize, r2, log_rel, arg
         )
         if a == -1:
             return None
@@ -346,7 +346,7 @@ class GraphDistance(BasisGraphDistance):
                 W, log_rel, r2, n, _NEGLIGIBLE_LOG, self.normalize, self.attach, squared
             )
         Pf, _, unreachable = self._split()
-        interpolated_row_exponent(W @ Pf, W, g._P, n, unreachable, cost, self.sigma_sp, out)
+        interpolated_row_exponent(W @ Pf, W, P, n, unreachable, cost, self.sigma_sp, out)
         return out[:m]
 
     # -- Distance interface -----------------------------------------------------------------

@@ -316,18 +316,16 @@ class SparseOnlineGP:
         state = {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._SCRATCH}
         kernel = self.kernel
         kernel_state = None
-        if kernel.tracks_basis:
-            kernel_state = copy.deepcopy({k: v for k, v in vars(kernel).items() if k != "_owner"})
+        if kernel.tracks_basis:  # a copy starts unbound (Kernel.__getstate__)
+            kernel_state = vars(copy.deepcopy(kernel))
         try:
             yield
         except BaseException:
             vars(self).update(state)
             if kernel_state is not None:
-                owner = vars(kernel).get("_owner")
                 vars(kernel).clear()
                 vars(kernel).update(kernel_state)
-                if owner is not None:
-                    kernel._owner = owner
+                kernel.bind(self)  # the restored state is unbound; this GP owns the kernel
             raise
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:

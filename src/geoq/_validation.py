@@ -7,6 +7,9 @@ downstream can assume C-contiguous, finite float64 arrays.
 
 from __future__ import annotations
 
+from numbers import Integral
+from typing import Any
+
 import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
@@ -16,8 +19,10 @@ __all__ = [
     "as_float_matrix",
     "as_float_point",
     "as_float_vector",
+    "check_count",
     "check_magnitude",
     "check_nonnegative",
+    "check_novelty_tol",
     "check_positive",
 ]
 
@@ -127,3 +132,24 @@ def check_nonnegative(value: float, name: str) -> float:
     if not np.isfinite(v) or v < 0.0:
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
     return v
+
+
+def check_count(value: Any, name: str) -> int:
+    """``value`` as an int, if it is an integer >= 1 (not a bool); else ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, Integral) or int(value) < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def check_novelty_tol(tol: Any) -> float:
+    """A GP's relative novelty threshold ``tol`` as a float in ``[0, 1]``; else ``ValueError``."""
+    try:
+        t = float(tol)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"tol must be a finite number >= 0, got {tol!r}") from exc
+    if not np.isfinite(t) or t < 0.0 or t > 1.0:
+        raise ValueError(
+            f"tol must be a finite number >= 0 and <= 1 (a novelty threshold relative to "
+            f"k(x, x): above 1 no point would ever become a basis vector), got {tol!r}"
+        )
+    return t

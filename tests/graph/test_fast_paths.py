@@ -7,7 +7,8 @@ import pytest
 
 from geoq.kernels import GeodesicKernel
 from geoq.kernels._geodesic_row import row_dots, row_sums, rows_equal, squares_over
-from geoq.kernels.geodesic import NEGLIGIBLE_WEIGHT, weighted_paths
+from geoq.kernels._graph_paths import weighted_paths
+from geoq.kernels.graph_distance import NEGLIGIBLE_WEIGHT
 
 
 def reference_sp(k: GeodesicKernel, X: np.ndarray, numpy_sums: bool = False) -> np.ndarray:

@@ -322,3 +322,23 @@ def test_seeded_random_operations_on_a_lattice_stay_exact_and_symmetric():
             else:
                 g.start_rollout()
             check_graph(g, mirror, ids)
+
+
+def test_views_equal_the_copies_are_read_only_and_do_not_copy():
+    rng = np.random.default_rng(3)
+    g = MDPGraph(0.2, period=[2 * np.pi, 0.0])
+    for x in rng.normal(size=(12, 2)):
+        g.add_node(x)
+    g.remove_node(4)
+    views = (g.nodes_view, g.shortest_paths_view, g.weights_view)
+    for view, copy in zip(views, (g.nodes, g.shortest_paths, g.weights), strict=True):
+        assert np.array_equal(view, copy)
+        assert not view.flags.writeable and not view.flags.owndata
+        with pytest.raises(ValueError):
+            view[0, 0] = 1.0
+        assert not np.shares_memory(view, copy)
+    assert np.shares_memory(g.nodes_view, g.nodes_view)  # two views of one buffer
+    g.add_node([0.1, 0.2])  # the graph itself stays writable
+    assert g.shortest_paths_view.shape == (12, 12)
+    assert np.array_equal(g.period_or_zeros(2), [2 * np.pi, 0.0])
+    assert np.array_equal(MDPGraph().period_or_zeros(3), np.zeros(3))

@@ -415,3 +415,15 @@ def test_invalid_arguments():
     with pytest.raises(ValueError, match="columns"):
         gk(np.zeros((2, 3)))
     assert gk.tracks_basis and ResistanceKernel().tracks_basis
+
+
+def test_names_moved_out_of_geodesic_stay_importable_from_it():
+    """The distances and path helpers live in graph_distance / _graph_paths; the old
+    import path ``geoq.kernels.geodesic`` gives the same objects."""
+    from geoq.kernels import _graph_paths, geodesic, graph_distance
+
+    for name in ("NEGLIGIBLE_WEIGHT", "BasisGraphDistance", "GraphDistance", "Method"):
+        assert getattr(geodesic, name) is getattr(graph_distance, name)
+    for name in ("pendant_distances", "split_unreachable", "weighted_paths"):
+        assert getattr(geodesic, name) is getattr(_graph_paths, name)
+    assert set(geodesic.__all__) <= set(dir(geodesic))

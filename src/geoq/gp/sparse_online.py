@@ -59,7 +59,6 @@ import copy
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from numbers import Integral
 from os import PathLike
 from typing import Any, Literal, overload
 
@@ -73,20 +72,22 @@ from geoq._validation import (
     as_float_matrix,
     as_float_point,
     as_float_vector,
+    check_count,
     check_magnitude,
+    check_novelty_tol,
     check_positive,
 )
 from geoq.gp._nb_delete import refresh_scores
 from geoq.gp._nb_linalg import mirror_lower
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
+from geoq.gp._predict import FACTOR_ROUTE_MIN, predict_chunked, predict_factored
 from geoq.gp._step import N_WORK, online_step_lower, se_stream
 from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
 from geoq.gp.numerics import (
     CONFIG,
-    VAR_ROUNDING,
     NumericalWarning,
     NumericsConfig,
-    is_positive_definite,
+    project_whitened_covariance,
     robust_cholesky,
 )
 from geoq.kernels.base import Kernel
@@ -94,29 +95,6 @@ from geoq.kernels.base import Kernel
 # OnlineDiagnostics and robust_cholesky live in geoq.gp.diagnostics and geoq.gp.numerics;
 # they stay importable from here.
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
-
-_PREDICT_CHUNK = 4096
-#: ``predict`` on at least this many points per BV uses the factored route (one GEMM).
-_FACTOR_ROUTE_MIN = 8
-
-
-def _check_budget(value: Any, name: str = "max_bv") -> int:
-    if isinstance(value, bool) or not isinstance(value, Integral) or int(value) < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
-
-
-def _check_tol(tol: Any) -> float:
-    try:
-        t = float(tol)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"tol must be a finite number >= 0, got {tol!r}") from exc
-    if not np.isfinite(t) or t < 0.0 or t > 1.0:
-        raise ValueError(
-            f"tol must be a finite number >= 0 and <= 1 (a novelty threshold relative to "
-            f"k(x, x): above 1 no point would ever become a basis vector), got {tol!r}"
-        )
-    return t
 
 
 class SparseOnlineGP:
@@ -162,13 +140,13 @@ class SparseOnlineGP:
         kernel.bind(self)  # a graph kernel serves one GP only
         self.kernel = kernel
         self.noise = check_positive(noise, "noise")
-        self.max_bv = _check_budget(max_bv)
-        self.tol = _check_tol(tol)
+        self.max_bv = check_count(max_bv, "max_bv")
+        self.tol = check_novelty_tol(tol)
         if resync_every is None:
             resync_every = (
                 1 if kernel.tracks_basis and kernel.positive_definite else max(64, 2 * self.max_bv)
             )
-        self.resync_every = _check_budget(resync_every, "resync_every")
+        self.resync_every = check_count(resync_every, "resync_every")
         self.config = config
         self._dim: int | None = kernel.input_dim
         self._reset_state()
@@ -338,18 +316,16 @@ class SparseOnlineGP:
         state = {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._SCRATCH}
         kernel = self.kernel
         kernel_state = None
-        if kernel.tracks_basis:
-            kernel_state = copy.deepcopy({k: v for k, v in vars(kernel).items() if k != "_owner"})
+        if kernel.tracks_basis:  # a copy starts unbound (Kernel.__getstate__)
+            kernel_state = vars(copy.deepcopy(kernel))
         try:
             yield
         except BaseException:
             vars(self).update(state)
             if kernel_state is not None:
-                owner = vars(kernel).get("_owner")
                 vars(kernel).clear()
                 vars(kernel).update(kernel_state)
-                if owner is not None:
-                    kernel._owner = owner
+                kernel.bind(self)  # the restored state is unbound; this GP owns the kernel
             raise
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
@@ -499,33 +475,12 @@ class SparseOnlineGP:
             )  # L_new^{-1} L_old with L = R^T: maps old whitened coordinates to new ones
             self._mu[:m] = Tm @ self._mu[:m]
             S = Tm @ self._S[:m, :m] @ Tm.T
-            self._S[:m, :m] = self._valid_whitened_covariance(S)
+            S, projected = project_whitened_covariance(S)  # 0 <= S <= I
+            self._counts.python["covariance_projections"] += projected
+            self._S[:m, :m] = S
             self._R[:m, :m] = R_new
         self._refresh_scores()
         self._counts.python["q_resyncs"] += 1
-
-    def _valid_whitened_covariance(self, S: FloatArray) -> FloatArray:
-        """``S`` [m, m] with its spectrum projected onto ``[0, 1]``.
-
-        Any GP posterior conditioned on data satisfies ``0 <= Sigma_BV <= K_BV``,
-        i.e. ``0 <= S <= I`` in whitened coordinates. Re-anchoring keeps the old
-        posterior of ``f_BV`` under the *new* prior, and when a graph kernel's new
-        ``K_BV`` is nearly singular that posterior is far wider than the prior in
-        some directions (``S`` eigenvalues up to ~1e8 were seen, giving predictive
-        variances 1e8 times the prior). The projection is the nearest valid ``S``
-        in the Frobenius norm; projected eigenvalues are counted in
-        ``diagnostics.covariance_projections``.
-        """
-        S = 0.5 * (S + S.T)
-        if is_positive_definite(S, VAR_ROUNDING) and is_positive_definite(-S, 1.0 + VAR_ROUNDING):
-            return S  # two Cholesky attempts: far cheaper than the eigendecomposition
-        w, U = scipy.linalg.eigh(S, check_finite=False)
-        bad = (w < -VAR_ROUNDING) | (w > 1.0 + VAR_ROUNDING)
-        if not np.any(bad):
-            return S
-        self._counts.python["covariance_projections"] += int(np.count_nonzero(bad))
-        S = (U * np.clip(w, 0.0, 1.0)) @ U.T
-        return 0.5 * (S + S.T)
 
     @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def refit(self, X: ArrayLike, y: ArrayLike) -> SparseOnlineGP:
@@ -595,55 +550,19 @@ class SparseOnlineGP:
             prior = np.asarray(self.kernel.diag(Xa), dtype=np.float64)
             return (np.zeros(n), np.sqrt(np.maximum(prior, 0.0))) if return_std else np.zeros(n)
         mean = np.empty(n)
-        std = np.empty(n) if return_std else mean
+        std = np.empty(n) if return_std else None
         # Contiguous copies: LAPACK on strided views of the [cap, cap] buffers is slow.
         R, S = np.ascontiguousarray(self._R[:m, :m]), np.ascontiguousarray(self._S[:m, :m])
         mu, bv = self._mu[:m], self._bv[:m]
         repaired = self._counts.features_repaired
-        if n >= _FACTOR_ROUTE_MIN * m and not repaired:
-            self._predict_factored(Xa, R, S, mu, bv, mean, std if return_std else None)
+        if n >= FACTOR_ROUTE_MIN * m and not repaired:
+            self._predict_factored(Xa, R, S, mu, bv, mean, std)
         else:
-            for lo in range(0, n, _PREDICT_CHUNK):
-                Xc = Xa[lo : lo + _PREDICT_CHUNK]
-                K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
-                V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
-                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
-                vv = np.einsum("ij,ij->j", V, V)  # [n_c]
-                if repaired:
-                    vv = self._rescale_features(V, vv, prior)
-                mean[lo : lo + len(Xc)] = V.T @ mu
-                if return_std:
-                    var = (prior - vv) + np.einsum("ij,ij->j", S @ V, V)
-                    self._store_std(var, prior, std[lo : lo + len(Xc)])
-        if not return_std:
+            predict_chunked(self.kernel, Xa, R, S, mu, bv, mean, std, repaired, self._counts)
+        if std is None:
             return mean
         self._warn_once()
         return mean, std
-
-    def _rescale_features(self, V: FloatArray, vv: FloatArray, prior: FloatArray) -> FloatArray:
-        """The update's negative-novelty repair applied to test points, in place.
-
-        An indefinite kernel can give ``|v|^2 > k(x, x)`` (negative novelty); the
-        online updates then scaled ``v`` onto ``|v|^2 = k(x, x)``, so the posterior
-        they built is that of the repaired feature map, and predictions use the same
-        map (unrepaired, a test point with ``|v|`` ~ 1e3 turned a bounded posterior
-        into predictions of ~1e4-1e8: Q-function MSE 3650 vs 37 repaired, median over
-        seeds). After :meth:`refit` the posterior is the DTC one of the raw features
-        and they are used unchanged. Columns of ``V`` [m, n] are rescaled where
-        ``vv`` [n] exceeds ``prior`` [n]; returns the new ``|v|^2`` [n].
-        """
-        over = vv > prior * (1.0 + VAR_ROUNDING)
-        if not np.any(over):
-            return vv
-        self._counts.predict_rescaled += int(np.count_nonzero(over))
-        V[:, over] *= np.sqrt(prior[over] / vv[over])
-        out = vv.copy()
-        out[over] = prior[over]
-        return out
-
-    def _store_std(self, var: FloatArray, prior: FloatArray, out: FloatArray) -> None:
-        self._counts.predict_clipped += int(np.count_nonzero(var < -VAR_ROUNDING * prior))
-        out[:] = np.sqrt(np.maximum(var, 0.0))
 
     def _predict_factored(
         self,
@@ -655,30 +574,8 @@ class SparseOnlineGP:
         mean: FloatArray,
         std: FloatArray | None,
     ) -> None:
-        """Many test points: one GEMM per chunk instead of a triangular solve and a GEMM.
-
-        ``var = k(x,x) - v^T (I - S) v`` with ``v = R^{-T} k_x``; with the eigen-
-        decomposition ``I - S = U diag(lam) U^T`` [m, m] (``lam >= 0`` for a PD kernel)
-        and ``G = R^{-1} U sqrt|lam|``: ``var = k(x,x) - sum_j sign(lam_j) (k_x^T G)_j^2``.
-        Same quantities as the per-chunk solve, O(m^3) set-up, then ``K G`` only.
-        """
-        m = R.shape[0]
-        Rinv = scipy.linalg.solve_triangular(R, np.eye(m), check_finite=False)  # [m, m]
-        alpha = Rinv @ mu  # [m]
-        if std is not None:
-            W = np.eye(m) - S
-            lam, U = scipy.linalg.eigh(0.5 * (W + W.T), check_finite=False)  # [m], [m, m]
-            keep = lam != 0.0
-            G = Rinv @ (U[:, keep] * np.sqrt(np.abs(lam[keep])))  # [m, m']
-            sign = np.sign(lam[keep])  # [m']
-        for lo in range(0, X.shape[0], _PREDICT_CHUNK):
-            Xc = X[lo : lo + _PREDICT_CHUNK]
-            K = np.asarray(self.kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
-            mean[lo : lo + len(Xc)] = K @ alpha
-            if std is not None:
-                H = K @ G  # [n_c, m']
-                prior = np.asarray(self.kernel.diag(Xc), dtype=np.float64)  # [n_c]
-                self._store_std(prior - (H * H) @ sign, prior, std[lo : lo + len(Xc)])
+        """:func:`~geoq.gp._predict.predict_factored` with this GP's kernel and counters."""
+        predict_factored(self.kernel, X, R, S, mu, bv, mean, std, self._counts)
 
     # ----------------------------------------------------------- persistence
     def save(self, path: str | PathLike[str]) -> None:

@@ -92,13 +92,17 @@ class MDPGraph:
     temporal_edges : also link successive nodes of the same roll-out.
     capacity : initial size of the preallocated buffers; they double when full.
 
-    Attributes (read-only views are returned as copies)
+    Attributes (returned as copies)
     ----------
     nodes : [n, d] node coordinates, in insertion order (= the GP's BV order).
     adjacency : scipy.sparse.csr_array [n, n] of edge weights (explicit zeros
         are zero-length edges between coinciding points).
     shortest_paths : [n, n] matrix ``P``; ``inf`` where unreachable, 0 on the diagonal.
+    weights : [n, n] dense edge weights; ``inf`` where there is no edge.
     rollout_ids : [n] roll-out id of each node.
+
+    ``nodes_view``, ``shortest_paths_view`` and ``weights_view`` are the same arrays
+    as read-only views without a copy, for hot paths (valid until the next change).
     """
 
     def __init__(
@@ -134,6 +138,7 @@ class MDPGraph:
 
     # -- storage ------------------------------------------------------------------------
     def _alloc(self, cap: int, dim: int) -> None:
+        self._view_cache: tuple[FloatArray, FloatArray, FloatArray] | None = None
         self._X = np.zeros((cap, dim))
         self._W = np.full((cap, cap), np.inf)  # dense edge weights, inf = no edge
         self._P = np.full((cap, cap), np.inf)
@@ -183,6 +188,43 @@ class MDPGraph:
         """[n, n] dense edge weights (a copy); ``inf`` where there is no edge."""
         return self._W[: self._n, : self._n].copy()
 
+    # Views without a copy, for code that reads the graph once per point (the kernels'
+    # rows): O(1) instead of the O(n^2) copies above. Read-only (writing raises), made
+    # once per change of the graph, and a view shows the graph as it was when taken:
+    # take a new one after any change (an added node may move the buffers).
+    @property
+    def nodes_view(self) -> FloatArray:
+        """[n, d] node coordinates as a read-only view of the graph's buffer (no copy)."""
+        return (self._view_cache or self._views())[0]
+
+    @property
+    def shortest_paths_view(self) -> FloatArray:
+        """[n, n] shortest paths ``P`` as a read-only view of the graph's buffer (no copy)."""
+        return (self._view_cache or self._views())[1]
+
+    @property
+    def weights_view(self) -> FloatArray:
+        """[n, n] dense edge weights as a read-only view of the graph's buffer (no copy)."""
+        return (self._view_cache or self._views())[2]
+
+    def _views(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        views = self._view_cache
+        if views is None:
+            n = self._n
+            views = self._view_cache = (
+                _read_only(self._X[:n]),
+                _read_only(self._P[:n, :n]),
+                _read_only(self._W[:n, :n]),
+            )
+        return views
+
+    def __getstate__(self) -> dict[str, object]:
+        """Copies (``copy.deepcopy``, pickling) leave out the cached views: a deep copy
+        would turn them into arrays independent of the copied buffers."""
+        state = dict(self.__dict__)
+        state["_view_cache"] = None
+        return state
+
     @property
     def adjacency(self) -> scipy.sparse.csr_array:
         """[n, n] sparse matrix of edge weights (JC12 eq. 2, plus temporal edges if enabled)."""
@@ -216,10 +258,11 @@ class MDPGraph:
         return wrapped_squared_distances(
             np.ascontiguousarray(X, dtype=np.float64),
             np.ascontiguousarray(Y, dtype=np.float64),
-            self._period_or_zeros(X.shape[1]),
+            self.period_or_zeros(X.shape[1]),
         )
 
-    def _period_or_zeros(self, d: int) -> FloatArray:
+    def period_or_zeros(self, d: int) -> FloatArray:
+        """[d] wrap-around period, zeros (no wrap) if the graph has none; do not modify it."""
         if self.period is not None:
             return self.period
         if self._zero_period is None or self._zero_period.shape[0] != d:
@@ -292,13 +335,14 @@ class MDPGraph:
         if self._dim is None:
             self._dim = int(xa.shape[0])
             self._X = np.zeros((self._cap, self._dim))
+            self._view_cache = None
         if self._n == self._cap:
             self._grow()
         n, v = self._n, self._n
         d = xa.shape[0]
         r2, neg = self._r2, self._neg
         squared_distances_row(
-            np.ascontiguousarray(xa), self._X, n, self._period_or_zeros(d), r2, neg
+            np.ascontiguousarray(xa), self._X, n, self.period_or_zeros(d), r2, neg
         )
         e = np.exp(neg[:n])  # JC12 eq. 2, evaluated literally: exp(-r2) > eps
         prev = -1
@@ -362,6 +406,7 @@ class MDPGraph:
 
     def _changed(self) -> None:
         self._tree = None
+        self._view_cache = None
         self.version += 1
 
     # -- persistence --------------------------------------------------------------------
@@ -412,6 +457,7 @@ class MDPGraph:
         g._ids[:n] = ids
         g._n = n
         g._rollout = int(arrays["current_rollout"])
+        g._view_cache = None
         return g
 
     def __repr__(self) -> str:
@@ -455,6 +501,12 @@ def _check_saved_state(
         raise ValueError(
             f"saved graph is corrupt or tampered with ({'; '.join(problems)}); save it again"
         )
+
+
+def _read_only(view: FloatArray) -> FloatArray:
+    """``view`` (a fresh view of a buffer) marked read-only; the buffer stays writable."""
+    view.flags.writeable = False
+    return view
 
 
 def _to_csgraph(W: FloatArray) -> scipy.sparse.csr_array:

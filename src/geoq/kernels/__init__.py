@@ -7,7 +7,8 @@ from geoq.kernels.base import (
     kernel_from_arrays,
     kernel_to_arrays,
 )
-from geoq.kernels.geodesic import GeodesicKernel, GraphDistance
+from geoq.kernels.geodesic import GeodesicKernel
+from geoq.kernels.graph_distance import GraphDistance
 from geoq.kernels.graph_pd import ResistanceDistance, ResistanceKernel
 from geoq.kernels.stationary import Euclidean, SquaredExponential
 

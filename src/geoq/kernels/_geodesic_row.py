@@ -1,7 +1,7 @@
 """Compiled per-point rows of the geodesic kernel: JC12 eq. 4 and JC12 eq. 5 for one input.
 
 The GP streams one point at a time; these functions do, in one call each, what the
-numpy expressions of :mod:`geoq.kernels.geodesic` do for a single row, with the same
+numpy expressions of :mod:`geoq.kernels.graph_distance` do for a single row, with the same
 floating-point operations in the same order (only IEEE +, -, *, /, sqrt and
 comparisons, which round identically here and in numpy). The two sums of JC12 eq. 5
 (the normalising weight sum and the attach cost) are defined here,

@@ -2,7 +2,7 @@
 
 Following tinygp, a stationary-style kernel is a *profile of a distance*: the
 distance is a separate object, so the graph (geodesic) distance of
-:mod:`geoq.kernels.geodesic` is one more :class:`Distance` and the GP code does
+:mod:`geoq.kernels.graph_distance` is one more :class:`Distance` and the GP code does
 not change. Kernels whose state follows the GP's basis-vector (BV) set (the
 geodesic kernel's graph) receive the GP's notifications through the
 ``basis_*`` hooks; for every other kernel they are no-ops.

@@ -68,6 +68,7 @@ from geoq._threads import one_blas_thread, single_blas_thread
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import check_positive
 from geoq.graph.mdp_graph import EdgeWeight, MDPGraph
+from geoq.kernels._graph_paths import pendant_distances
 from geoq.kernels._resistance import (
     add_edges,
     components_of,
@@ -75,7 +76,8 @@ from geoq.kernels._resistance import (
     parallel_part,
     remove_node_resistances,
 )
-from geoq.kernels.geodesic import BasisGraphDistance, GraphKernel, pendant_distances
+from geoq.kernels.geodesic import GraphKernel
+from geoq.kernels.graph_distance import BasisGraphDistance
 
 __all__ = [
     "ResistanceDistance",
@@ -146,8 +148,7 @@ class ResistanceDistance(BasisGraphDistance):
 
     def _recompute(self, idx: IntArray | None) -> None:
         """Effective resistances of the nodes ``idx`` (None: all) from scratch."""
-        n = self.graph.n_nodes
-        W = self.graph._W[:n, :n]
+        W = self.graph.weights_view
         if idx is None:
             self._R = effective_resistance(W)
         else:
@@ -203,7 +204,7 @@ class ResistanceDistance(BasisGraphDistance):
         super().basis_added(x)
         self._undo = (g.version, self._R)  # R before the add (never edited in place)
         v = g.n_nodes - 1
-        w_row = g._W[v, :v]  # resistances of the new node's edges (inf: none)
+        w_row = g.weights_view[v, :v]  # resistances of the new node's edges (inf: none)
         R = np.full((v + 1, v + 1), np.inf)
         R[:v, :v] = self._R
         R[v, v] = 0.0
@@ -244,19 +245,19 @@ class ResistanceDistance(BasisGraphDistance):
             super().basis_removed(index)
             return
         self._version = -1
-        w_row = g._W[v, :n].copy()
+        w_row = g.weights_view[v].copy()
         w_row[v] = np.inf
         nbr = np.flatnonzero(np.isfinite(w_row))
         if not self._cheap(nbr.size - 1, int(np.isfinite(self._R[v]).sum())):
             super().basis_removed(v)
             return  # stale: one recomputation at the next use is cheaper
-        W_nbr = g._W[np.ix_(nbr, nbr)].copy()
+        W_nbr = g.weights_view[np.ix_(nbr, nbr)]  # a copy (fancy indexing)
         comp = self._component(v)
         super().basis_removed(v)
         new = nbr - (nbr > v)  # neighbours' indices after the removal
-        ok = self._bridges(nbr, W_nbr, g._W[np.ix_(new, new)])
+        ok = self._bridges(nbr, W_nbr, g.weights_view[np.ix_(new, new)])
         if ok and nbr.size >= 2:
-            split = bool(np.isinf(g._P[new[0], new]).any())
+            split = bool(np.isinf(g.shortest_paths_view[new[0], new]).any())
             w = w_row[nbr]
             ok = not split and bool(np.all(w > 0.0))
             if ok:
@@ -324,7 +325,7 @@ class ResistanceDistance(BasisGraphDistance):
         if "resistance" in arrays:  # files written before the incremental updates have none
             R = np.asarray(arrays["resistance"], dtype=np.float64)
             g = out.graph
-            P = g._P[: g.n_nodes, : g.n_nodes]
+            P = g.shortest_paths_view
             if (
                 R.shape != P.shape
                 or not np.array_equal(np.isinf(R), np.isinf(P))

@@ -92,7 +92,7 @@ class QGPConfig:
     attach_weights: bool = False
     """Eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
     literal JC12 eq. 5 gives every point zero novelty against a one-node graph, so its BV set
-    never grows past one point; see :mod:`geoq.kernels.geodesic`)."""
+    never grows past one point; see :mod:`geoq.kernels.graph_distance`)."""
     resistance_lengthscale: float = 1.0
     """``l`` of the ``resistance`` kernel ``A exp(-R / l)``."""
     wrap_angle: bool = False

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -57,3 +59,14 @@ def test_log_interval_falls_back_to_a_clipped_t_interval_for_zeros():
     assert iv.center == "mean" and iv.low == 0.0 and iv.mean == pytest.approx(0.2)
     assert log_interval([2.0]).low == 0.0 and log_interval([2.0]).high == np.inf
     assert log_interval([np.nan, np.inf]).n == 0
+
+
+def test_values_whose_spread_overflows_give_an_infinite_interval_without_warnings():
+    """A diverged cell (MSE ~1e160 beside ~1) must not print numpy overflow warnings."""
+    huge = [1e160, 2e200, 1.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        iv = mean_interval(huge)
+        lg = log_interval([1e300, 1e-300, 1.0])
+    assert iv.high == np.inf and np.isfinite(iv.mean)
+    assert lg.high == np.inf and lg.low == 0.0 and lg.mean == pytest.approx(1.0)

@@ -48,7 +48,9 @@ def mean_interval(values: Iterable[float], level: float = 0.95) -> Interval:
     """Mean and Student-t confidence interval of i.i.d. values (over seeds).
 
     Non-finite values are dropped. With a single value the interval is
-    ``(-inf, inf)``: one seed gives no evidence of spread.
+    ``(-inf, inf)``: one seed gives no evidence of spread. Values so large that
+    their spread overflows (a diverged cell's MSE of ~1e160) give an infinite
+    interval, without a warning: that is the answer, not an accident.
     """
     v = np.asarray(list(values), dtype=np.float64)
     v = v[np.isfinite(v)]
@@ -56,7 +58,8 @@ def mean_interval(values: Iterable[float], level: float = 0.95) -> Interval:
         return Interval(float("nan"), float("nan"), float("nan"), 0, level)
     if v.size == 1:
         return Interval(float(v[0]), -np.inf, np.inf, 1, level)
-    mean, low, high = mean_confidence_interval(v, level=level)
+    with np.errstate(over="ignore"):
+        mean, low, high = mean_confidence_interval(v, level=level)
     return Interval(float(mean), float(low), float(high), int(v.size), level)
 
 
@@ -87,11 +90,8 @@ def log_interval(values: Iterable[float], level: float = 0.95) -> Interval:
     if v.size == 1:
         return Interval(float(v[0]), 0.0, np.inf, 1, level, "geometric mean")
     mean, low, high = mean_confidence_interval(np.log(v), level=level)
+    with np.errstate(over="ignore"):  # an end beyond the float range is inf: unbounded
+        ends = np.exp([mean, low, high])
     return Interval(
-        float(np.exp(mean)),
-        float(np.exp(low)),
-        float(np.exp(high)),
-        int(v.size),
-        level,
-        "geometric mean",
+        float(ends[0]), float(ends[1]), float(ends[2]), int(v.size), level, "geometric mean"
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import zipfile
 from pathlib import Path
 
@@ -197,3 +198,40 @@ def test_declared_reward_bounds_set_the_value_bounds_from_the_first_step() -> No
     for bad in ((1.0, -1.0), (0.0, np.inf), (0.0,), "ab", (True, 1.0)):
         with pytest.raises(ValueError, match="reward_bounds"):
             GPQConfig(reward_bounds=bad)  # type: ignore[arg-type]
+
+
+def test_evidence_hyperparameters_fit_the_lengthscales_on_a_doubling_schedule(
+    tmp_path: Path,
+) -> None:
+    agent = _agent(hyperparameters="evidence").learn(400)
+    fits = agent.evidence_fits
+    assert len(fits) >= 3
+    sizes = [f["transitions"] for f in fits]
+    assert all(b >= 2 * a for a, b in itertools.pairwise(sizes))
+    for f in fits:  # each fit improves on the length-scales in use (its warm start)
+        assert f["log_evidence"] >= f["log_evidence_start"]
+    assert agent.fitted_lengthscale == tuple(fits[-1]["lengthscale"])
+    np.testing.assert_array_equal(
+        np.broadcast_to(agent.gp.kernel.lengthscale, (2,)), agent.fitted_lengthscale
+    )
+    rule = _agent().learn(400)
+    assert rule.evidence_fits == [] and rule.fitted_lengthscale is None
+    # Same seed, same fits; saved and reloaded, the agent keeps and continues them.
+    again = _agent(hyperparameters="evidence").learn(400)
+    assert again.evidence_fits == fits
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    loaded = GPQAgent.load(path, env=PointToGoal())
+    assert loaded.fitted_lengthscale == agent.fitted_lengthscale
+    assert loaded.evidence_due == agent.evidence_due
+    due = agent.evidence_due
+    agent.learn(450)
+    loaded.learn(450)
+    assert agent.evidence_fits[-1]["transitions"] >= due  # the schedule went on
+    assert loaded.evidence_fits == agent.evidence_fits
+    obs = np.linspace(-1, 1, 7)[:, None]
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+    with pytest.raises(ValueError, match="needs kernel='euclidean'"):
+        _agent(hyperparameters="evidence", kernel="nearest")
+    with pytest.raises(ValueError, match="hyperparameters must be one of"):
+        _agent(hyperparameters="grid")

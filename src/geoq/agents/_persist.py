@@ -51,6 +51,9 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
         "scaling_pending": agent.scaling_pending,
         "data_scaled": agent.data_scaled,
         "rescales": agent.rescales,
+        "fitted_lengthscale": agent.fitted_lengthscale,
+        "evidence_fits": agent.evidence_fits,
+        "evidence_due": agent.evidence_due,
     }
     arrays["meta"] = np.asarray(json.dumps(meta, allow_nan=True))
     arrays["episodes"] = np.array(
@@ -116,6 +119,10 @@ def load_agent(
     agent.scaling_pending = bool(meta.get("scaling_pending", False))
     agent.data_scaled = bool(meta.get("data_scaled", False))
     agent.rescales = int(meta.get("rescales", 0))
+    fitted = meta.get("fitted_lengthscale")
+    agent.fitted_lengthscale = None if fitted is None else tuple(float(v) for v in fitted)
+    agent.evidence_fits = list(meta.get("evidence_fits", []))
+    agent.evidence_due = int(meta.get("evidence_due", 0))
     agent.episodes = [EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes]
     agent.env = None
     if env is None and agent.env_id and agent.env_id in gymnasium.registry:

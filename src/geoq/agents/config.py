@@ -14,12 +14,23 @@ import numpy as np
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
 from geoq.learners.q_gp import KERNEL_NAMES, KernelName
 
-__all__ = ["PRIORS", "REPLAYS", "GPQConfig", "Prior", "Replay", "check_int"]
+__all__ = [
+    "HYPERPARAMETERS",
+    "PRIORS",
+    "REPLAYS",
+    "GPQConfig",
+    "Hyperparameters",
+    "Prior",
+    "Replay",
+    "check_int",
+]
 
 Prior = Literal["midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
+Hyperparameters = Literal["rule", "evidence"]
+HYPERPARAMETERS: tuple[str, ...] = ("rule", "evidence")
 
 
 @dataclass(frozen=True)
@@ -57,6 +68,21 @@ class GPQConfig:
     """Length-scale of each action dimension when ``lengthscale`` is None. Longer than
     the states': one step's action moves the next state by ``dt``-small amounts, so
     Q varies slowly along the action."""
+    hyperparameters: Hyperparameters = "rule"
+    """Where the squared-exponential length-scales come from. ``rule``: ``lengthscale``, or
+    ``state_lengthscale`` / ``action_lengthscale``, fixed. ``evidence`` (``euclidean``
+    only): re-fitted by maximum exact-GP evidence
+    (:func:`geoq.gp.evidence.fit_squared_exponential`, ARD, on at most 300 of the
+    stored inputs and their current standardised targets, warm-started from the
+    length-scales in use; periodic inputs enter unwrapped) at the first
+    fitted-Q phase and whenever the stored transitions have doubled since the last fit
+    (250, 500, 1,000, ...: a few fits per run); the GP is then rebuilt from the stored
+    transitions. The rule's values are the first start. Only the length-scales are
+    taken: ``amplitude`` and ``noise`` define the prior over values never seen (the
+    optimism that drives exploration), which the evidence of the visited ones does
+    not inform. Each fit is recorded in ``GPQAgent.evidence_fits``. The default is
+    ``rule``: on the swing-up the evidence's length-scales learned worse
+    (docs/design-notes.md)."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3
@@ -119,6 +145,17 @@ class GPQConfig:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
         if self.replay not in REPLAYS:
             raise ValueError(f"replay must be one of {REPLAYS}, got {self.replay!r}")
+        if self.hyperparameters not in HYPERPARAMETERS:
+            raise ValueError(
+                f"hyperparameters must be one of {HYPERPARAMETERS}, got {self.hyperparameters!r}"
+            )
+        if self.hyperparameters == "evidence" and self.kernel != "euclidean":
+            raise ValueError(
+                "hyperparameters='evidence' fits squared-exponential length-scales: it needs "
+                f"kernel='euclidean', got {self.kernel!r}. The graph kernels' Gram is not "
+                "positive definite (or, for 'resistance', has no length-scale per input): "
+                "use hyperparameters='rule' and set eps / sigma_sp / resistance_lengthscale"
+            )
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if self.exploration not in EXPLORATION_MODES:

@@ -43,6 +43,7 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import fields
 from os import PathLike
@@ -62,6 +63,8 @@ from geoq.agents.config import REPLAYS, GPQConfig, check_int
 from geoq.agents.fitted_q import fitted_q_sweeps
 from geoq.agents.graph_replay import imagine_transitions
 from geoq.gp import SparseOnlineGP
+from geoq.gp.evidence import fit_squared_exponential
+from geoq.gp.numerics import NumericalWarning
 from geoq.kernels.geodesic import GraphKernel
 from geoq.learners.q_gp import KernelName, QGPConfig, make_kernel
 from geoq.learners.scaling import InputScaling
@@ -71,6 +74,10 @@ __all__ = ["REPLAYS", "EpisodeRecord", "GPQAgent", "GPQConfig"]
 
 #: A data-driven input scale is refreshed when the states' spread outgrows it by this factor.
 RESCALE_FACTOR = 1.5
+#: ``hyperparameters="evidence"``: points of each fit (O(n^3) per evaluation) and its
+#: random restarts beyond the warm start (the length-scales in use).
+EVIDENCE_POINTS = 300
+EVIDENCE_RESTARTS = 1
 
 
 def _as_env(env: gymnasium.Env | str) -> gymnasium.Env:
@@ -131,6 +138,8 @@ class GPQAgent:
         if unknown:
             raise TypeError(f"GPQAgent got unknown argument(s) {unknown}")
         self.config = GPQConfig(kernel=kernel, max_bv=max_bv, **config)
+        #: Length-scales fitted by evidence (``hyperparameters="evidence"``), else None.
+        self.fitted_lengthscale: tuple[float, ...] | None = None
         self.env: gymnasium.Env | None = _as_env(env)
         obs_space, act_space = _check_spaces(self.env)
         self.obs_dim = int(obs_space.shape[0])
@@ -180,10 +189,16 @@ class GPQAgent:
         self.imagined_counts: list[int] = []
         self.train_seconds = 0.0
         self.rescales = 0
+        #: One record per evidence fit: transitions, length-scales, log evidence, ...
+        self.evidence_fits: list[dict[str, Any]] = []
+        #: The next evidence fit runs once this many transitions are stored.
+        self.evidence_due = 0
 
     # ------------------------------------------------------------------ set-up
     def _lengthscale(self) -> float | tuple[float, ...]:
         c = self.config
+        if self.fitted_lengthscale is not None:
+            return self.fitted_lengthscale
         if c.lengthscale is None:
             return (c.state_lengthscale,) * self.obs_dim + (c.action_lengthscale,) * self.action_dim
         if isinstance(c.lengthscale, tuple):
@@ -389,11 +404,16 @@ class GPQAgent:
         return data_scaling(np.vstack([S, S2]), obs_space, act_space, info)
 
     def _rescale_from_data(self) -> None:
-        """Scale inputs by the states seen, then stream the stored transitions into a new GP.
+        """Scale inputs by the states seen, then stream the stored transitions into a new GP."""
+        self.scaling = self._data_scaling()
+        self._restream()
+        self.rescales += 1
+
+    def _restream(self) -> None:
+        """A new GP (current scaling and length-scales) fed the stored transitions in order.
 
         Each transition enters with its current target (the warm-up's: its reward).
         """
-        self.scaling = self._data_scaling()
         self.gp = self._new_gp()
         S, A, _, S2, _ = self.buffer.arrays(last=self.config.window)
         y = self.buffer.targets(last=self.config.window)
@@ -403,7 +423,6 @@ class GPQAgent:
             if graph and (i == 0 or not np.array_equal(S[i], S2[i - 1])):
                 self.gp.kernel.start_rollout()  # type: ignore[attr-defined]
             self.gp.update(X[i], (y[i] - self.y_mean) / self.y_scale)
-        self.rescales += 1
 
     def _spread_outgrew_scaling(self) -> bool:
         """A data-driven scale is refreshed once the states' spread outgrows it by 1.5x."""
@@ -420,10 +439,44 @@ class GPQAgent:
         t0 = time.perf_counter()
         if self.data_scaled and self.env is not None and self._spread_outgrew_scaling():
             self._rescale_from_data()
+        if self.config.hyperparameters == "evidence" and len(self.buffer) >= self.evidence_due:
+            self._fit_lengthscales()
         try:
             return self._train()
         finally:
             self.train_seconds += time.perf_counter() - t0
+
+    def _fit_lengthscales(self) -> None:
+        """Squared-exponential length-scales by maximum evidence (``hyperparameters="evidence"``).
+
+        Fitted on the stored inputs and their current standardised targets (at most
+        :data:`EVIDENCE_POINTS`, drawn with the agent's generator), from the length-scales
+        in use plus :data:`EVIDENCE_RESTARTS` random starts; the GP is rebuilt with them.
+        The fit's :class:`NumericalWarning` are recorded in :attr:`evidence_fits`.
+        """
+        c = self.config
+        S, A, _, _, _ = self.buffer.arrays(last=c.window)
+        z = (self.buffer.targets(last=c.window) - self.y_mean) / self.y_scale
+        n, d = len(z), self.scaling.dim
+        self.evidence_due = 2 * n
+        if n < 2 or np.ptp(z) == 0.0:
+            return  # equal targets say nothing about length-scales
+        start = np.broadcast_to(np.asarray(self._lengthscale(), dtype=np.float64), (d,))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", NumericalWarning)
+            fit = fit_squared_exponential(
+                self.inputs(S, A), z, lengthscale0=start, ard=True,
+                max_points=EVIDENCE_POINTS, n_restarts=EVIDENCE_RESTARTS,
+                rng=np.random.default_rng(self.rng.integers(2**32)),
+            )  # fmt: skip
+        ls = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (d,)))
+        self.evidence_fits.append({
+            "transitions": n, "lengthscale": list(ls), "log_evidence": fit.log_evidence,
+            "log_evidence_start": fit.log_evidence_start, "converged": fit.converged,
+            "at_bound": list(fit.at_bound), "warnings": [str(w.message) for w in caught],
+        })  # fmt: skip
+        self.fitted_lengthscale = ls
+        self._restream()
 
     @single_blas_thread
     def _train(self) -> int:

@@ -9,6 +9,8 @@ from pathlib import Path
 import gymnasium
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tests.agents._tasks import PointToGoal, steps_to_goal
 
 import geoq  # noqa: F401  (registers the envs)
@@ -190,9 +192,10 @@ def test_declared_reward_bounds_set_the_value_bounds_from_the_first_step() -> No
     agent.learn(40)  # PointToGoal pays -1 per step: inside the declared range, no change
     assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
     assert _agent().learn(40).value_bounds() == pytest.approx((-10.0, -1.0))  # seen only
-    car = GPQAgent("MountainCarContinuous-v0", max_bv=10)  # a known range: the flag's +100
-    assert car.reward_range == (-0.1, 100.0)
-    assert car.value_bounds()[1] == pytest.approx(100.0 / (1.0 - car.config.gamma))
+    car = GPQAgent("MountainCarContinuous-v0", max_bv=10)  # known: -0.1 a^2, +100 at the flag
+    assert car.reward_range == (-0.1, 0.0) and car.terminal_reward_range == (99.9, 100.0)
+    # The flag's reward ends the episode: received once, not 100 / (1 - gamma) = 5,000.
+    assert car.value_bounds() == pytest.approx((-0.1 / (1.0 - car.config.gamma), 100.0))
     config = GPQConfig(reward_bounds=(-2.0, 3.0))
     assert GPQConfig.from_dict(config.as_dict()) == config
     for bad in ((1.0, -1.0), (0.0, np.inf), (0.0,), "ab", (True, 1.0)):
@@ -235,3 +238,42 @@ def test_evidence_hyperparameters_fit_the_lengthscales_on_a_doubling_schedule(
         _agent(hyperparameters="evidence", kernel="nearest")
     with pytest.raises(ValueError, match="hyperparameters must be one of"):
         _agent(hyperparameters="grid")
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    r=st.tuples(st.floats(-5, 5), st.floats(-5, 5)).map(sorted),
+    t=st.one_of(st.none(), st.tuples(st.floats(-200, 200), st.floats(-200, 200)).map(sorted)),
+    gamma=st.floats(0.0, 0.99),
+)
+def test_value_bounds_hold_every_discounted_return_brute_force(
+    r: list[float], t: list[float] | None, gamma: float
+) -> None:
+    """Oracle: the extreme discounted returns of k steps with rewards in [r_min, r_max]
+    followed by a terminating reward in [t_min, t_max] (or none), over k up to 3,000."""
+    agent = GPQAgent(
+        PointToGoal(), max_bv=5, gamma=gamma, reward_bounds=tuple(r),
+        terminal_reward_bounds=None if t is None else tuple(t),
+    )  # fmt: skip
+    lo, hi = agent.value_bounds()
+    k = np.arange(3_001)[:, None]
+    prefix = np.asarray(r)[None, :] * (1.0 - gamma**k) / (1.0 - gamma)  # [k, 2]
+    returns = [prefix[1:]]  # k >= 1 rewards, no terminal one (gamma^k -> 0: continuing)
+    if t is not None:
+        returns.append(prefix + gamma**k * np.asarray(t)[None, :])  # then a terminal reward
+    everything = np.concatenate([x.ravel() for x in returns])
+    assert lo <= everything.min() + 1e-9 * (1 + abs(lo))
+    assert hi >= everything.max() - 1e-9 * (1 + abs(hi))
+    # ... and they are tight: each end is reached (or approached as k grows).
+    assert everything.min() <= lo + 0.05 * (1 + abs(lo)) and everything.max() >= hi - 0.05 * (
+        1 + abs(hi)
+    )
+
+
+def test_terminal_rewards_seen_widen_only_the_terminal_range() -> None:
+    agent = _agent(reward_bounds=(-1.0, -1.0), terminal_reward_bounds=(5.0, 5.0)).learn(200)
+    assert agent.reward_range == (-1.0, -1.0)  # PointToGoal pays -1 on every step,
+    assert agent.terminal_reward_range == (-1.0, 5.0)  # the terminating ones included
+    assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
+    with pytest.raises(ValueError, match="terminal_reward_bounds"):
+        _agent(terminal_reward_bounds=(1.0, 0.0))

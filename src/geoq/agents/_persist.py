@@ -44,6 +44,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
         "y_mean": agent.y_mean,
         "y_scale": agent.y_scale,
         "reward_range": list(agent.reward_range),
+        "terminal_reward_range": list(agent.terminal_reward_range),
         "num_timesteps": agent.num_timesteps,
         "fitted_q_sweeps": agent.fitted_q_sweeps,
         "imagined_counts": agent.imagined_counts,
@@ -112,6 +113,9 @@ def load_agent(
     agent.y_mean, agent.y_scale = float(meta["y_mean"]), float(meta["y_scale"])
     lo, hi = meta["reward_range"]
     agent.reward_range = (float(lo), float(hi))
+    # Files before the split counted terminal rewards in reward_range: still valid bounds.
+    t_lo, t_hi = meta.get("terminal_reward_range", (np.inf, -np.inf))
+    agent.terminal_reward_range = (float(t_lo), float(t_hi))
     agent.num_timesteps = int(meta["num_timesteps"])
     agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
     agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]

@@ -126,12 +126,20 @@ class GPQConfig:
     """JC12 eq. 2 threshold of the replay graph: two state-action pairs are linked when
     their squared-exponential similarity in length-scale units exceeds it."""
     reward_bounds: tuple[float, float] | None = None
-    """Declared range ``(r_min, r_max)`` of one step's reward. The value bounds (and so
+    """Declared range ``(r_min, r_max)`` of one step's reward (of the steps that do not
+    end the episode, when ``terminal_reward_bounds`` is known). The value bounds (and so
     the optimistic prior) start from it instead of from the rewards seen so far;
     rewards outside it still widen them. ``None``: the task's known range (Gymnasium's
     ``MountainCarContinuous-v0`` and ``Pendulum-v1``, :data:`geoq.tasks.KNOWN_TASKS`), else
     only the rewards seen. Without it a task whose reward arrives late (the mountain
     car's +100 at the flag) has an optimistic prior of 0, the value of doing nothing."""
+    terminal_reward_bounds: tuple[float, float] | None = None
+    """Declared range of the reward of a step that ends the episode (``terminated``).
+    Received once, it bounds a return by itself: the value bounds are ``[min(r_min,
+    r_min / (1 - gamma), t_min), max(r_max, r_max / (1 - gamma), t_max)]``, so the
+    mountain car's +100 at the flag makes the optimistic prior 100, not
+    ``100 / (1 - gamma) = 5,000``. ``None``: the task's known range (the mountain car's
+    ``(99.9, 100)``), else the rewards of the terminating steps seen."""
     prior: Prior = "optimistic"
     """What the GP assumes of ``Q`` where it has no data (the standardisation
     ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
@@ -181,21 +189,8 @@ class GPQConfig:
             _check_real(getattr(self, name), name, strict=True)
         if not 0.0 <= self.tol <= 1.0:
             raise ValueError(f"tol must be in [0, 1], got {self.tol!r}")
-        if self.reward_bounds is not None:
-            rb = self.reward_bounds
-            ok = (
-                isinstance(rb, tuple | list)
-                and len(rb) == 2
-                and all(
-                    isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
-                    for v in rb
-                )
-            )
-            if not ok or rb[0] > rb[1]:
-                raise ValueError(
-                    f"reward_bounds must be two finite numbers (r_min, r_max) with "
-                    f"r_min <= r_max, got {rb!r}"
-                )
+        for name in ("reward_bounds", "terminal_reward_bounds"):
+            _check_bounds(getattr(self, name), name)
         if self.lengthscale is not None:
             ls = np.atleast_1d(np.asarray(self.lengthscale, dtype=np.float64))
             if not (np.all(np.isfinite(ls)) and np.all(ls > 0)):
@@ -204,7 +199,7 @@ class GPQConfig:
     def as_dict(self) -> dict[str, Any]:
         """JSON-able representation."""
         out = asdict(self)
-        for name in ("lengthscale", "reward_bounds"):
+        for name in ("lengthscale", "reward_bounds", "terminal_reward_bounds"):
             if isinstance(getattr(self, name), tuple):
                 out[name] = list(getattr(self, name))
         return out
@@ -217,7 +212,7 @@ class GPQConfig:
         if unknown:
             raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
         d = dict(data)
-        for name in ("lengthscale", "reward_bounds"):
+        for name in ("lengthscale", "reward_bounds", "terminal_reward_bounds"):
             if isinstance(d.get(name), list):
                 d[name] = tuple(d[name])
         return cls(**d)
@@ -226,6 +221,22 @@ class GPQConfig:
 def check_int(value: Any, name: str, minimum: int) -> None:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _check_bounds(rb: Any, name: str) -> None:
+    if rb is None:
+        return
+    ok = (
+        isinstance(rb, tuple | list)
+        and len(rb) == 2
+        and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v) for v in rb
+        )
+    )
+    if not ok or rb[0] > rb[1]:
+        raise ValueError(
+            f"{name} must be two finite numbers (r_min, r_max) with r_min <= r_max, got {rb!r}"
+        )
 
 
 def _check_real(value: Any, name: str, *, strict: bool) -> None:

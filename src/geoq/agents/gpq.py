@@ -179,9 +179,15 @@ class GPQAgent:
         self.buffer = TransitionBuffer(self.obs_dim, self.action_dim)
         self.y_mean, self.y_scale = 0.0, 1.0 / (1.0 - self.config.gamma)
         declared = self.config.reward_bounds or info.reward_range
-        #: Extreme rewards (declared, then widened by those seen); see :meth:`value_bounds`.
+        #: Extreme rewards of the steps that did not end an episode (declared, then widened
+        #: by those seen); see :meth:`value_bounds`.
         self.reward_range: tuple[float, float] = (
             (float(declared[0]), float(declared[1])) if declared else (np.inf, -np.inf)
+        )
+        terminal = self.config.terminal_reward_bounds or info.terminal_reward_range
+        #: Extreme rewards of the steps that ended an episode (``terminated``), likewise.
+        self.terminal_reward_range: tuple[float, float] = (
+            (float(terminal[0]), float(terminal[1])) if terminal else (np.inf, -np.inf)
         )
         self.num_timesteps = 0
         self.episodes: list[EpisodeRecord] = []
@@ -281,14 +287,18 @@ class GPQAgent:
 
     # ------------------------------------------------------------------ learning
     def value_bounds(self) -> tuple[float, float]:
-        """``[lo, hi]`` holding every target: ``lo = min(r_min, r_min / (1 - gamma))``, same for hi.
+        """``[lo, hi]`` holding every target.
 
-        ``r_min, r_max`` are the extreme rewards observed so far; a discounted
-        return (or a bootstrapped target) of rewards in that range lies within.
+        ``lo = min(r_min, r_min / (1 - gamma), t_min)``, ``hi = max(r_max, r_max / (1 -
+        gamma), t_max)`` with ``[r_min, r_max]`` the range of the rewards of steps that do
+        not end an episode and ``[t_min, t_max]`` of those that do (declared or seen).
+        A discounted return is ``sum_{t<k} gamma^t r_t + gamma^k t_k``: between
+        ``r / (1 - gamma)`` and ``t`` for constant rewards, so within the bounds.
         """
         lo, hi = self.reward_range
+        t_lo, t_hi = self.terminal_reward_range
         g = self.config.gamma
-        return min(lo, lo / (1.0 - g)), max(hi, hi / (1.0 - g))
+        return min(lo, lo / (1.0 - g), t_lo), max(hi, hi / (1.0 - g), t_hi)
 
     @single_blas_thread
     def learn(
@@ -337,7 +347,11 @@ class GPQAgent:
                 if not np.isfinite(r):
                     raise ValueError(f"the env returned a non-finite reward {r!r}")
                 s2, _ = self._check_obs(obs2)
-                self.reward_range = (min(self.reward_range[0], r), max(self.reward_range[1], r))
+                if terminated:
+                    t_lo, t_hi = self.terminal_reward_range
+                    self.terminal_reward_range = (min(t_lo, r), max(t_hi, r))
+                else:
+                    self.reward_range = (min(self.reward_range[0], r), max(self.reward_range[1], r))
                 mean, std = self._q_or_none(s2)
                 q_next = 0.0 if mean is None or terminated else float(np.max(mean))
                 y = float(

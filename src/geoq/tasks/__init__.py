@@ -40,13 +40,18 @@ class TaskInfo:
     success_return : for tasks whose env reports no ``info["is_success"]``: an
         evaluation succeeds when its mean return reaches this (None: the env's own).
     reward_range : ``(r_min, r_max)`` of one step's reward where the env documents it
-        and its best reward comes late (the agent's optimistic prior starts from it).
+        and its best reward comes late (the agent's optimistic prior starts from it);
+        with ``terminal_reward_range``, of the steps that do not end the episode.
+    terminal_reward_range : ``(r_min, r_max)`` of the reward of a step that ends the
+        episode (``terminated``), where the env documents one apart: it is received
+        once, so it bounds a return by itself, not divided by ``1 - gamma``.
     """
 
     periods: tuple[float, ...]
     names: tuple[str, ...]
     success_return: float | None = None
     reward_range: tuple[float, float] | None = None
+    terminal_reward_range: tuple[float, float] | None = None
 
 
 #: Tasks whose periodic dimensions are known. Gymnasium's ``Pendulum-v1``
@@ -54,7 +59,8 @@ class TaskInfo:
 #: Gymnasium tasks (mean evaluation return): MountainCarContinuous 90 (Gymnasium's
 #: own "solved" threshold), Pendulum-v1 -160 (rl-baselines3-zoo's SAC reaches -157).
 #: Reward ranges from Gymnasium's documentation: MountainCarContinuous
-#: ``-0.1 a^2`` per step and +100 at the flag; Pendulum-v1
+#: ``-0.1 a^2`` per step, plus 100 on the step that reaches the flag (and ends the
+#: episode); Pendulum-v1
 #: ``-(theta^2 + 0.1 omega^2 + 0.001 u^2)``, 0 upright at rest.
 KNOWN_TASKS: Mapping[str, TaskInfo] = {
     PENDULUM_SWING_UP_ID: TaskInfo(periods=(2.0 * np.pi, 0.0), names=("theta", "omega")),
@@ -69,7 +75,8 @@ KNOWN_TASKS: Mapping[str, TaskInfo] = {
         periods=(0.0, 0.0),
         names=("position", "velocity"),
         success_return=90.0,
-        reward_range=(-0.1, 100.0),
+        reward_range=(-0.1, 0.0),
+        terminal_reward_range=(99.9, 100.0),
     ),
 }
 
@@ -90,12 +97,16 @@ def task_info(env: gymnasium.Env, periods: Sequence[float] | None = None) -> Tas
         return known if known is not None else TaskInfo(periods=(0.0,) * d, names=names)
     success = known.success_return if known is not None else None
     rewards = known.reward_range if known is not None else None
+    terminal = known.terminal_reward_range if known is not None else None
     p = tuple(float(v) for v in periods)
     if len(p) != d or not all(np.isfinite(v) and v >= 0 for v in p):
         raise ValueError(
             f"periods must give one finite period >= 0 per observation dimension ({d}), got {p}"
         )
-    return TaskInfo(periods=p, names=names, success_return=success, reward_range=rewards)
+    return TaskInfo(
+        periods=p, names=names, success_return=success, reward_range=rewards,
+        terminal_reward_range=terminal,
+    )  # fmt: skip
 
 
 def box_scaling(

@@ -328,6 +328,17 @@ class SparseOnlineGP:
                 kernel.bind(self)  # the restored state is unbound; this GP owns the kernel
             raise
 
+    def copy(self) -> SparseOnlineGP:
+        """An independent model in the same state, kernel (and its graph) included.
+
+        Updates of the copy and of the original give the same numbers as they would
+        on either alone (``copy.deepcopy``: every buffer copied bit for bit); the
+        copied kernel is bound to the copy.
+        """
+        new = copy.deepcopy(self)  # the kernel's copy starts unbound (Kernel.__getstate__)
+        new.kernel.bind(new)
+        return new
+
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
         """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
         (the kernel offers :meth:`~geoq.kernels.base.Kernel.se_parameters`)."""

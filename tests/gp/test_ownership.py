@@ -57,3 +57,28 @@ def test_stateless_kernels_are_shared_freely() -> None:
 def test_bad_settings_name_themselves(kwargs: dict[str, float], match: str) -> None:
     with pytest.raises(ValueError, match=match):
         SparseOnlineGP(SquaredExponential(0.5), noise=0.01, max_bv=20, **kwargs)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: SquaredExponential(0.5),
+        lambda: GeodesicKernel(eps=0.3, method="nearest", sigma_sp=4.0),
+        lambda: ResistanceKernel(eps=0.3),
+    ],
+    ids=["se", "geodesic", "resistance"],
+)
+def test_copy_is_an_independent_model_in_the_same_state(make) -> None:  # type: ignore[no-untyped-def]
+    rng = np.random.default_rng(5)
+    X, y = rng.normal(size=(60, 2)), rng.normal(size=60)
+    gp = SparseOnlineGP(make(), noise=0.1, max_bv=12).fit(X[:30], y[:30])
+    twin = gp.copy()
+    assert twin.kernel is not gp.kernel
+    twin.partial_fit(X[30:], y[30:])  # the copy drives its own kernel (bound to it)
+    gp.partial_fit(X[30:], y[30:])
+    fresh = SparseOnlineGP(make(), noise=0.1, max_bv=12).fit(X, y)
+    assert gp.diagnostics == twin.diagnostics == fresh.diagnostics  # before predict counts
+    want = fresh.predict(X, return_std=True)
+    for model in (gp, twin):
+        for a, b in zip(model.predict(X, return_std=True), want, strict=True):
+            np.testing.assert_array_equal(a, b)

@@ -151,3 +151,37 @@ def test_qgp_config_round_trips_and_refuses_unknown_fields() -> None:
     assert QGPConfig.from_dict(cfg.as_dict()) == cfg
     with pytest.raises(ValueError, match="unknown learner field"):
         QGPConfig.from_dict({**cfg.as_dict(), "noize": 1.0})
+
+
+# -- issue 13: fit_twin shares the first roll-out's stream; same bits as two fits ----------
+@pytest.mark.parametrize(
+    "cfg",
+    [
+        QGPConfig(kernel="euclidean", max_bv=15),
+        QGPConfig(kernel="nearest", max_bv=15, sigma_sp=8.0),
+        QGPConfig(kernel="interpolated", max_bv=15, sigma_se=0.1),
+        QGPConfig(kernel="resistance", max_bv=15),
+        QGPConfig(kernel="nearest", max_bv=15, pd_novelty=True),
+    ],
+    ids=["euclidean", "nearest", "interpolated", "resistance", "pd_novelty"],
+)
+def test_fit_twin_equals_two_separate_fits_bit_for_bit(rollouts, cfg: QGPConfig) -> None:
+    S, A = rollouts[1].states, rollouts[1].actions
+    online = GPQFunction(cfg)
+    twin = online.fit_twin(rollouts, "episode")
+    alone = GPQFunction(cfg).fit(rollouts)
+    twin_alone = GPQFunction(cfg.replace(refit="episode")).fit(rollouts)
+    assert twin.config == twin_alone.config
+    for got, want in ((online, alone), (twin, twin_alone)):
+        assert got.gp_ is not None and want.gp_ is not None
+        assert got.gp_.kernel is not want.gp_.kernel
+        assert got.gp_.diagnostics == want.gp_.diagnostics
+        for a, b in zip(
+            got.predict(S, A, return_std=True), want.predict(S, A, return_std=True), strict=True
+        ):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(got.gp_.basis_vectors, want.gp_.basis_vectors)
+    # the learners are independent: refitting one leaves the other as it was
+    before = twin.predict(S, A)
+    online.refit()
+    np.testing.assert_array_equal(twin.predict(S, A), before)

@@ -24,6 +24,7 @@ __all__ = [
     "NotPSDError",
     "NumericalWarning",
     "NumericsConfig",
+    "cholesky_cannot_succeed",
     "clip_eigenvalues",
     "is_positive_definite",
     "project_whitened_covariance",
@@ -71,13 +72,20 @@ VAR_ROUNDING = 1e-9
 
 
 def safe_cholesky(
-    K: FloatArray, *, config: NumericsConfig = CONFIG, what: str = "kernel matrix"
+    K: FloatArray,
+    *,
+    config: NumericsConfig = CONFIG,
+    what: str = "kernel matrix",
+    spectrum: FloatArray | None = None,
 ) -> tuple[FloatArray, float]:
     """Lower Cholesky factor of a symmetric matrix, with escalating jitter.
 
     Parameters
     ----------
     K : [n, n] symmetric matrix.
+    spectrum : [n] the eigenvalues of ``K`` (exactly symmetric), if the caller has them:
+        a try that cannot succeed (:func:`cholesky_cannot_succeed`) is skipped. The
+        result is the same, without the cost of the failing factorisations.
 
     Returns
     -------
@@ -91,13 +99,21 @@ def safe_cholesky(
         return np.zeros((0, 0)), 0.0
     if not np.all(np.isfinite(K)):
         raise NotPSDError(f"{what} contains NaN or inf; check the kernel hyper-parameters")
-    try:
-        return scipy.linalg.cholesky(K, lower=True, check_finite=False), 0.0
-    except np.linalg.LinAlgError:
-        pass
+
+    def hopeless(shift: float) -> bool:
+        return spectrum is not None and cholesky_cannot_succeed(spectrum, K, shift)
+
+    if not hopeless(0.0):
+        try:
+            return scipy.linalg.cholesky(K, lower=True, check_finite=False), 0.0
+        except np.linalg.LinAlgError:
+            pass
     scale = float(np.mean(np.abs(np.diag(K)))) or 1.0
     jitter = config.jitter * scale
     for _ in range(config.max_tries):
+        if hopeless(jitter):
+            jitter *= config.growth
+            continue
         try:
             L = scipy.linalg.cholesky(
                 K + jitter * np.eye(K.shape[0]), lower=True, check_finite=False
@@ -119,12 +135,40 @@ def safe_cholesky(
     )
 
 
-def clip_eigenvalues(K: FloatArray, *, config: NumericsConfig = CONFIG) -> tuple[FloatArray, int]:
+#: Safety factor of :func:`cholesky_cannot_succeed` over the rounding-error bounds.
+_CERTAIN = 100.0
+
+
+def cholesky_cannot_succeed(spectrum: FloatArray, K: FloatArray, shift: float) -> bool:
+    """Whether the Cholesky factorisation of ``K + shift I`` [n, n] certainly fails, judged
+    from the computed eigenvalues ``spectrum`` [n] of the symmetric ``K``.
+
+    A factorisation that succeeds returns ``L`` with ``L L^T = A + E`` (``A = K + shift I``),
+    ``|E| <= gamma_{n+1} |L| |L^T|`` (Higham, *Accuracy and Stability*, Thm. 10.3), so
+    ``lambda_min(A) >= -gamma_{n+1} tr(L L^T)``; a backward-stable eigensolver's values are
+    within ``O(n u ||A||)`` of the true ones. Both bounds together, times :data:`_CERTAIN`,
+    are the margin: ``True`` only if the smallest eigenvalue of ``A`` lies below minus
+    that margin, where no factorisation can succeed (a skipped try changes nothing).
+    """
+    n = K.shape[0]
+    u = np.finfo(np.float64).eps
+    w_min, w_abs = float(np.min(spectrum)), float(np.max(np.abs(spectrum)))
+    size = abs(float(np.trace(K))) + n * (w_abs + 2.0 * abs(shift))
+    return w_min + shift < -_CERTAIN * (n + 1) * u * size
+
+
+def clip_eigenvalues(
+    K: FloatArray,
+    *,
+    config: NumericsConfig = CONFIG,
+    eigh: tuple[FloatArray, FloatArray] | None = None,
+) -> tuple[FloatArray, int]:
     """Nearest (in Frobenius norm) positive-definite matrix by eigenvalue clipping.
 
     Eigenvalues below ``config.eig_floor * max(|eigenvalue|)`` are raised to
     that floor. Used to repair indefinite Gram matrices of kernels that are not
-    positive definite (e.g. a Gaussian of a graph distance).
+    positive definite (e.g. a Gaussian of a graph distance). ``eigh``: the
+    eigendecomposition ``(w, V)`` of ``0.5 (K + K^T)``, if the caller has it.
 
     Returns
     -------
@@ -135,7 +179,7 @@ def clip_eigenvalues(K: FloatArray, *, config: NumericsConfig = CONFIG) -> tuple
     sym = 0.5 * (K + K.T)
     if sym.shape[0] == 0:
         return sym, 0
-    w, V = scipy.linalg.eigh(sym, check_finite=False)
+    w, V = scipy.linalg.eigh(sym, check_finite=False) if eigh is None else eigh
     floor = config.eig_floor * max(float(np.max(np.abs(w))), np.finfo(np.float64).tiny)
     low = w < floor
     n_clipped = int(np.count_nonzero(low))
@@ -163,7 +207,10 @@ def robust_cholesky(
     Tries :func:`safe_cholesky` (silencing its per-call warning: the caller counts
     and reports repairs); if the matrix is not PD even with the maximal jitter,
     clips its eigenvalues (:func:`clip_eigenvalues`) and factorises the repaired
-    matrix.
+    matrix. When the plain factorisation of an exactly symmetric ``K`` fails, its
+    eigendecomposition (which the clipping needs) is made first, and the jittered
+    tries it proves hopeless are skipped: an indefinite Gram (the geodesic kernel's)
+    is clipped without ``max_tries`` failing factorisations, with the same result.
 
     Returns
     -------
@@ -171,13 +218,22 @@ def robust_cholesky(
     jitter_events : 1 if jitter was added, else 0.
     eig_clips : number of eigenvalues clipped.
     """
+    K = np.asarray(K, dtype=np.float64)
+    eigh = None
+    if K.ndim == 2 and K.size and np.all(np.isfinite(K)) and np.array_equal(K, K.T):
+        try:
+            return scipy.linalg.cholesky(K, lower=True, check_finite=False), 0, 0
+        except np.linalg.LinAlgError:  # safe_cholesky's first try: not PD
+            eigh = scipy.linalg.eigh(0.5 * (K + K.T), check_finite=False)  # clip's input
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
         try:
-            L, jitter = safe_cholesky(K, config=config, what=what)
+            L, jitter = safe_cholesky(
+                K, config=config, what=what, spectrum=None if eigh is None else eigh[0]
+            )
             return L, int(jitter > 0.0), 0
         except NotPSDError:
-            K_pd, n_clipped = clip_eigenvalues(K, config=config)
+            K_pd, n_clipped = clip_eigenvalues(K, config=config, eigh=eigh)
             L, jitter = safe_cholesky(K_pd, config=config, what=what)
             return L, int(jitter > 0.0), n_clipped
 
@@ -195,8 +251,10 @@ def project_whitened_covariance(S: FloatArray) -> tuple[FloatArray, int]:
     within ``VAR_ROUNDING`` of ``[0, 1]`` are left alone.
     """
     S = 0.5 * (S + S.T)
-    if is_positive_definite(S, VAR_ROUNDING) and is_positive_definite(-S, 1.0 + VAR_ROUNDING):
-        return S, 0  # two Cholesky attempts: far cheaper than the eigendecomposition
+    # Two Cholesky attempts, far cheaper than the eigendecomposition; S <= I first: after
+    # a graph kernel's re-anchoring that is the bound S breaks (and the second try is spared).
+    if is_positive_definite(-S, 1.0 + VAR_ROUNDING) and is_positive_definite(S, VAR_ROUNDING):
+        return S, 0
     w, U = scipy.linalg.eigh(S, check_finite=False)
     bad = (w < -VAR_ROUNDING) | (w > 1.0 + VAR_ROUNDING)
     if not np.any(bad):

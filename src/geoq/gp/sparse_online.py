@@ -59,6 +59,7 @@ import copy
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from os import PathLike
 from typing import Any, Literal, overload
 
@@ -95,6 +96,25 @@ from geoq.kernels.base import Kernel
 # OnlineDiagnostics and robust_cholesky live in geoq.gp.diagnostics and geoq.gp.numerics;
 # they stay importable from here.
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
+
+
+@dataclass(frozen=True)
+class _FactorMemo:
+    """The last ``K_BV`` a GP factorised and what :func:`robust_cholesky` made of it."""
+
+    K: FloatArray  # [m, m] the symmetrised K_BV
+    config: NumericsConfig
+    R: FloatArray  # [m, m] upper factor (read-only)
+    jitter_events: int
+    eig_clips: int
+
+    def same_input(self, K: FloatArray, config: NumericsConfig) -> bool:
+        """Whether ``K`` is :attr:`K` bit for bit (signed zeros included) under ``config``."""
+        return (
+            config == self.config
+            and K.shape == self.K.shape
+            and np.array_equal(K.view(np.uint64), self.K.view(np.uint64))
+        )
 
 
 class SparseOnlineGP:
@@ -167,6 +187,7 @@ class SparseOnlineGP:
         self._work = np.zeros((N_WORK, cap))
         self._counts = Counters()  # every counter, and whether the warning was shown
         self._changes = 0
+        self._factor_memo: _FactorMemo | None = None  # the last K_BV factorised
 
     def _set_dim(self, d: int) -> None:
         if self._dim is None:
@@ -303,7 +324,7 @@ class SparseOnlineGP:
         return self
 
     #: Scratch buffers: not part of the model's state.
-    _SCRATCH = frozenset({"_T", "_kbuf", "_work", "kernel", "config"})
+    _SCRATCH = frozenset({"_T", "_kbuf", "_work", "kernel", "config", "_factor_memo"})
 
     @contextmanager
     def _all_or_nothing(self) -> Iterator[None]:
@@ -327,6 +348,17 @@ class SparseOnlineGP:
                 vars(kernel).update(kernel_state)
                 kernel.bind(self)  # the restored state is unbound; this GP owns the kernel
             raise
+
+    def copy(self) -> SparseOnlineGP:
+        """An independent model in the same state, kernel (and its graph) included.
+
+        Updates of the copy and of the original give the same numbers as they would
+        on either alone (``copy.deepcopy``: every buffer copied bit for bit); the
+        copied kernel is bound to the copy.
+        """
+        new = copy.deepcopy(self)  # the kernel's copy starts unbound (Kernel.__getstate__)
+        new.kernel.bind(new)
+        return new
 
     def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
         """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
@@ -430,15 +462,31 @@ class SparseOnlineGP:
 
     # ------------------------------------------------------- resync / refit
     def _factor_gram(self) -> FloatArray:
-        """Upper Cholesky factor ``R`` [m, m] of the current ``K_BV`` under the jitter policy."""
+        """Upper Cholesky factor ``R`` [m, m] of the current ``K_BV`` under the jitter policy
+        (read-only: the caller copies it into the state).
+
+        The factor is a function of ``K_BV`` and ``config`` alone, so it is kept for the
+        last ``K_BV`` factorised: when a resync finds the same matrix bit for bit (the
+        GP added a point and deleted it again, and the kernel's ``K_BV`` came back with
+        the graph; with an indefinite ``K_BV`` each factorisation costs an
+        eigendecomposition), the stored factor and its repair counts are reused.
+        """
         m = self._m
         K = np.asarray(self.kernel.basis_gram(self._bv[:m]), dtype=np.float64)  # [m, m]
         if K.shape != (m, m) or not np.all(np.isfinite(K)):
             raise ValueError(f"kernel.basis_gram returned shape {K.shape} or non-finite values")
-        L, jit, clips = robust_cholesky(0.5 * (K + K.T), "K_BV", self.config)
+        K = 0.5 * (K + K.T)
+        memo = self._factor_memo
+        if memo is not None and memo.same_input(K, self.config):
+            R, jit, clips = memo.R, memo.jitter_events, memo.eig_clips
+        else:
+            L, jit, clips = robust_cholesky(K, "K_BV", self.config)
+            R = np.ascontiguousarray(L.T)
+            R.flags.writeable = False
+            self._factor_memo = _FactorMemo(K, self.config, R, jit, clips)
         self._counts.python["jitter_events"] += jit
         self._counts.python["eig_clips"] += clips
-        return np.ascontiguousarray(L.T)
+        return R
 
     def _refresh_scores(self, record_drift: bool = True) -> None:
         """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.

@@ -294,6 +294,33 @@ class GPQFunction:
         rollouts : records with ``states [H, d_s]``, ``actions [H]`` and
             Monte-Carlo targets ``returns [H]`` (:class:`geoq.rollouts.Rollout`).
         """
+        Xs, zs = self._targets(rollouts)
+        gp = self._new_gp()
+        self._stream(gp, Xs[0], zs[0])
+        self._finish(gp, Xs, zs)
+        return self
+
+    def fit_twin(self, rollouts: Sequence[Rollout], refit: RefitMode) -> GPQFunction:
+        """:meth:`fit` this learner, and return a second one fitted to the same roll-outs
+        with ``config.refit = refit``: the same numbers as ``GPQFunction(
+        config.replace(refit=refit)).fit(rollouts)``, bit for bit.
+
+        The two learners stream the first roll-out identically (no refit happens before
+        it ends), so that part runs once and the GP is copied
+        (:meth:`~geoq.gp.SparseOnlineGP.copy`).
+        """
+        twin = GPQFunction(self.config.replace(refit=refit))
+        Xs, zs = self._targets(rollouts)
+        twin.y_mean_, twin.y_scale_ = self.y_mean_, self.y_scale_
+        gp = self._new_gp()
+        self._stream(gp, Xs[0], zs[0])
+        twin_gp = gp.copy()
+        self._finish(gp, Xs, zs)
+        twin._finish(twin_gp, Xs, zs)
+        return twin
+
+    def _targets(self, rollouts: Sequence[Rollout]) -> tuple[list[FloatArray], list[FloatArray]]:
+        """Scaled inputs and standardised targets per roll-out; sets ``y_mean_``, ``y_scale_``."""
         if len(rollouts) == 0:
             raise ValueError("no roll-outs given; fit needs at least one")
         Xs = [self.inputs(ro.states, ro.actions) for ro in rollouts]
@@ -307,25 +334,32 @@ class GPQFunction:
             self.y_scale_ = float(np.std(y_all)) or 1.0
         else:
             self.y_mean_, self.y_scale_ = 0.0, 1.0
+        return Xs, [(y - self.y_mean_) / self.y_scale_ for y in ys]
+
+    def _new_gp(self) -> SparseOnlineGP:
         cfg = self.config
         gp_class = PDNoveltyOnlineGP if cfg.pd_novelty else SparseOnlineGP
-        gp = gp_class(make_kernel(cfg), noise=cfg.noise, max_bv=cfg.max_bv, tol=cfg.tol)
-        seen_X: list[FloatArray] = []
-        seen_y: list[FloatArray] = []
-        for X, y in zip(Xs, ys, strict=True):
-            if isinstance(gp.kernel, GraphKernel):
-                gp.kernel.start_rollout()
-            z = (y - self.y_mean_) / self.y_scale_
-            gp.partial_fit(X, z)
-            seen_X.append(X)
-            seen_y.append(z)
+        return gp_class(make_kernel(cfg), noise=cfg.noise, max_bv=cfg.max_bv, tol=cfg.tol)
+
+    @staticmethod
+    def _stream(gp: SparseOnlineGP, X: FloatArray, z: FloatArray) -> None:
+        """One roll-out into ``gp``, step by step (a graph kernel starts a new roll-out)."""
+        if isinstance(gp.kernel, GraphKernel):
+            gp.kernel.start_rollout()
+        gp.partial_fit(X, z)
+
+    def _finish(self, gp: SparseOnlineGP, Xs: list[FloatArray], zs: list[FloatArray]) -> None:
+        """The refits and roll-outs after the first roll-out has been streamed into ``gp``."""
+        cfg = self.config
+        for i in range(len(Xs)):
+            if i > 0:
+                self._stream(gp, Xs[i], zs[i])
             if cfg.refit == "episode":
-                gp.refit(np.vstack(seen_X), np.concatenate(seen_y))
+                gp.refit(np.vstack(Xs[: i + 1]), np.concatenate(zs[: i + 1]))
         if cfg.refit == "end":
-            gp.refit(np.vstack(seen_X), np.concatenate(seen_y))
+            gp.refit(np.vstack(Xs), np.concatenate(zs))
         self.gp_ = gp
-        self._train = (np.vstack(seen_X), np.concatenate(seen_y))
-        return self
+        self._train = (np.vstack(Xs), np.concatenate(zs))
 
     def refit(self) -> GPQFunction:
         """Refit the posterior on the current BV set and kernel, using all training data."""

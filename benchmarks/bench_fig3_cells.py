@@ -1,0 +1,126 @@
+"""One Fig. 3 cell of ``geoq reproduce --scale quick`` in isolation, per cell type and budget.
+
+The Fig. 3 stage is most of ``make demo``: at ``--scale quick`` (3 seeds, 5
+budgets) its 120 cells take ~170 s with one job, and a few cell types carry
+nearly all of it (issue 13): the ``resistance`` kernel (``K_BV`` re-factorised and
+the whitened posterior re-anchored after every change of the BV set) and the
+``pd_novelty`` variant of the geodesic kernels (the same, plus an eigendecomposition
+of the indefinite ``K_BV`` per change). Each row here is one cell exactly as
+``geoq.experiments.fig3.budget_cell`` runs it (training roll-outs of seed 0, the
+seed's evaluation pairs and Monte-Carlo truth, ``score_learner``), timed with
+one BLAS thread; ``x 3 seeds`` is what that cell type and budget adds to the quick
+run's Fig. 3 stage.
+
+Learner settings: the quick run's tuning (``results/demo/tuning.json`` from
+``make demo``) if it exists, else the values that tuning gives at root seed 2012
+(:data:`QUICK_TUNED`), so the benchmark needs no 40 s tuning of its own.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from geoq._threads import one_blas_thread
+from geoq.experiments.config import config_for_scale, variant_learner
+from geoq.experiments.fig3 import TruthCell, score_learner, truth_cell
+from geoq.experiments.seeding import STREAM, rng_for
+from geoq.gp import NumericalWarning
+from geoq.learners import QGPConfig
+from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy
+from geoq.rollouts import collect_rollouts
+
+#: (variant, kernel) of the rows: the slow cell types, and the SE and the tuned
+#: ``nearest`` kernel for scale.
+CELL_TYPES = (
+    ("tuned", "euclidean"),
+    ("tuned", "nearest"),
+    ("tuned", "resistance"),
+    ("pd_novelty", "nearest"),
+    ("pd_novelty", "interpolated"),
+)
+BUDGETS = (50, 100, 200)
+TUNING_FILE = Path("results/demo/tuning.json")
+_SHARED = {"amplitude": 3.7870371398361082, "noise": 0.17506494876403583}
+#: The quick scale's tuned settings at root seed 2012 (``tuning.json``), per kernel.
+QUICK_TUNED: dict[str, dict[str, Any]] = {
+    "euclidean": {**_SHARED, "lengthscale": (1.1431958796596038, 1.1975909836798757, 1e3)},
+    "nearest": {**_SHARED, "eps": 0.3, "sigma_sp": 0.3},
+    "interpolated": {
+        **_SHARED,
+        "eps": 0.5,
+        "sigma_sp": 0.1,
+        "sigma_se": 0.01,
+        "normalize_weights": True,
+        "attach_weights": True,
+    },
+    "resistance": {**_SHARED, "eps": 0.3, "resistance_lengthscale": 3.0},
+}
+
+
+def tuned_learners() -> tuple[dict[str, QGPConfig], str]:
+    """Learner settings per kernel and where they came from."""
+    if TUNING_FILE.is_file():
+        configs = json.loads(TUNING_FILE.read_text())["result"]["configs"]
+        return {k: QGPConfig.from_dict(v) for k, v in configs.items()}, str(TUNING_FILE)
+    fallback = {k: QGPConfig(kernel=k, **v) for k, v in QUICK_TUNED.items()}  # type: ignore[arg-type]
+    return fallback, "QUICK_TUNED (no results/demo/tuning.json)"
+
+
+def main() -> None:
+    cfg = config_for_scale("quick")
+    sigma = DEFAULT_POLICY_SIGMA
+    truth = truth_cell(
+        TruthCell(
+            seed=0,
+            root_seed=cfg.root_seed,
+            policy_sigma=sigma,
+            gamma=cfg.gamma,
+            eval_pairs=cfg.eval_pairs,
+            eval_rollouts=cfg.eval_rollouts,
+            eval_steps=cfg.train_steps,
+            mc_rollouts=cfg.mc_rollouts,
+            td_episodes=cfg.td_episodes,
+            td_steps=cfg.td_steps,
+        )
+    )
+    rollouts = collect_rollouts(
+        cfg.train_rollouts,
+        cfg.train_steps,
+        default_policy(sigma),
+        rng_for(cfg.root_seed, 0, STREAM["train"]),
+        gamma=cfg.gamma,
+    )
+    arrays = [np.asarray(truth[k]) for k in ("states", "actions", "mc_mean", "mc_stderr", "td")]
+    learners, source = tuned_learners()
+    print(f"one Fig. 3 cell (seed 0, quick scale, one BLAS thread); settings: {source}")
+    header = "".join(f"{'max_bv ' + str(b):>14}" for b in BUDGETS)
+    print(f"  {'variant':>10} {'kernel':>12} {header}")
+    total = 0.0
+    with warnings.catch_warnings(), one_blas_thread():
+        warnings.simplefilter("ignore", NumericalWarning)
+        for variant, kernel in CELL_TYPES:
+            learner = learners[kernel]
+            if variant != "tuned":
+                learner = variant_learner(variant, learner)
+            cells = []
+            for budget in BUDGETS:
+                config = learner.replace(kernel=kernel, max_bv=budget)
+                start = time.perf_counter()
+                score_learner(
+                    config, rollouts, *arrays[:4], td=arrays[4], refit_episode=variant == "tuned"
+                )
+                t = time.perf_counter() - start
+                total += t
+                cells.append(f"{t:8.2f} s")
+            print(f"  {variant:>10} {kernel:>12} " + "".join(f"{c:>14}" for c in cells))
+    print(f"  these cells x 3 seeds: {3 * total:.0f} s of the quick run's Fig. 3 stage")
+
+
+if __name__ == "__main__":
+    main()

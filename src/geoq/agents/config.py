@@ -101,8 +101,13 @@ class GPQConfig:
     """Largest number of fitted-Q sweeps per phase."""
     sweep_tol: float = 1e-3
     """A phase stops when no target moves by more than this (in units of ``y_scale``)."""
-    window: int = 5_000
-    """Fitted-Q phases use the most recent ``window`` transitions."""
+    window: int = 10_000
+    """Fitted-Q phases use the most recent ``window`` transitions. One that leaves the
+    window is forgotten: where nothing else was seen the value returns to the
+    optimistic prior and the agent goes back to explore (the mountain car's greedy
+    return wavered after 6,500 steps with 5,000; docs/design-notes.md). A phase holds
+    the covariances of ``window x n_candidates`` next-state pairs with the basis:
+    ``8 window n_candidates max_bv`` bytes (0.67 GB at the defaults)."""
     replay: Replay = "uniform"
     """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
     all transitions alike); ``none``: no replay, the targets stay those computed

@@ -75,20 +75,7 @@ def tuned_learners() -> tuple[dict[str, QGPConfig], str]:
 def main() -> None:
     cfg = config_for_scale("quick")
     sigma = DEFAULT_POLICY_SIGMA
-    truth = truth_cell(
-        TruthCell(
-            seed=0,
-            root_seed=cfg.root_seed,
-            policy_sigma=sigma,
-            gamma=cfg.gamma,
-            eval_pairs=cfg.eval_pairs,
-            eval_rollouts=cfg.eval_rollouts,
-            eval_steps=cfg.train_steps,
-            mc_rollouts=cfg.mc_rollouts,
-            td_episodes=cfg.td_episodes,
-            td_steps=cfg.td_steps,
-        )
-    )
+    truth = truth_cell(TruthCell.of(cfg, 0, sigma))
     rollouts = collect_rollouts(
         cfg.train_rollouts,
         cfg.train_steps,

@@ -28,6 +28,7 @@ from geoq._typing import FloatArray
 from geoq.baselines.tabular_td import td_baseline
 from geoq.evaluation.metrics import mse, normalized_variance
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
+from geoq.experiments.config import ReproConfig
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_key, cell_spec, load_cell
 from geoq.gp import NumericalWarning
@@ -84,6 +85,16 @@ class TruthCell:
     mc_rollouts: int
     td_episodes: int
     td_steps: int
+
+    @classmethod
+    def of(cls, cfg: ReproConfig, seed: int, policy_sigma: float) -> TruthCell:
+        """The ground-truth cell of ``seed`` in the reproduction configured by ``cfg``."""
+        return cls(
+            seed=seed, root_seed=cfg.root_seed, policy_sigma=policy_sigma, gamma=cfg.gamma,
+            eval_pairs=cfg.eval_pairs, eval_rollouts=cfg.eval_rollouts,
+            eval_steps=cfg.train_steps, mc_rollouts=cfg.mc_rollouts,
+            td_episodes=cfg.td_episodes, td_steps=cfg.td_steps,
+        )  # fmt: skip
 
 
 def truth_cell(cell: TruthCell) -> dict[str, Any]:

@@ -128,21 +128,7 @@ def reproduce(
     write_csv(out / "tuning.csv", tuning.validation, TUNING_COLUMNS)
 
     truth_dir = (out / "cells" / "truth").resolve()
-    truth_cells = [
-        TruthCell(
-            seed=s,
-            root_seed=cfg.root_seed,
-            policy_sigma=sigma,
-            gamma=cfg.gamma,
-            eval_pairs=cfg.eval_pairs,
-            eval_rollouts=cfg.eval_rollouts,
-            eval_steps=cfg.train_steps,
-            mc_rollouts=cfg.mc_rollouts,
-            td_episodes=cfg.td_episodes,
-            td_steps=cfg.td_steps,
-        )
-        for s in range(cfg.seeds)
-    ]
+    truth_cells = [TruthCell.of(cfg, s, sigma) for s in range(cfg.seeds)]
     sweep = {"jobs": jobs, "backend": backend, "scheduler": scheduler, "progress": progress}
     run_sweep(truth_cells, truth_cell, truth_dir, desc="ground truth", **sweep)  # type: ignore[arg-type]
 

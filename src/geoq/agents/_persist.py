@@ -17,6 +17,7 @@ import gymnasium
 import numpy as np
 
 from geoq._io import ArchiveError, load_archive, save_archive
+from geoq.agents._covariance_cache import NextStateCovariances
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer
 from geoq.agents.config import GPQConfig
 from geoq.gp import SparseOnlineGP
@@ -127,6 +128,7 @@ def load_agent(
     agent.fitted_lengthscale = None if fitted is None else tuple(float(v) for v in fitted)
     agent.evidence_fits = list(meta.get("evidence_fits", []))
     agent.evidence_due = int(meta.get("evidence_due", 0))
+    agent._next_covariances = NextStateCovariances()
     agent.episodes = [EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes]
     agent.env = None
     if env is None and agent.env_id and agent.env_id in gymnasium.registry:

@@ -56,6 +56,7 @@ from gymnasium import spaces
 
 from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray
+from geoq.agents._covariance_cache import NextStateCovariances
 from geoq.agents._persist import load_agent, save_agent
 from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer
@@ -199,6 +200,7 @@ class GPQAgent:
         self.evidence_fits: list[dict[str, Any]] = []
         #: The next evidence fit runs once this many transitions are stored.
         self.evidence_due = 0
+        self._next_covariances = NextStateCovariances()
 
     # ------------------------------------------------------------------ set-up
     def _lengthscale(self) -> float | tuple[float, ...]:
@@ -428,6 +430,7 @@ class GPQAgent:
 
         Each transition enters with its current target (the warm-up's: its reward).
         """
+        self._next_covariances.clear()  # new inputs or kernel
         self.gp = self._new_gp()
         S, A, _, S2, _ = self.buffer.arrays(last=self.config.window)
         y = self.buffer.targets(last=self.config.window)
@@ -519,7 +522,7 @@ class GPQAgent:
         Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
         bv = gp.basis_vectors
         V = scipy.linalg.solve_triangular(Rf, gp.kernel.to_basis(X, bv).T, trans="T")  # [m, N]
-        K_next = gp.kernel.to_basis(self._candidate_inputs(S2), bv)  # [N K, m]
+        K_next = self._next_state_covariances(S2, N, bv)  # [N' K, m]
         result = fitted_q_sweeps(
             V, K_next, Rf, c.noise, R, 1.0 - term.astype(np.float64), c.gamma, y0,
             y_mean=self.y_mean, y_scale=self.y_scale, max_sweeps=c.max_sweeps,
@@ -534,6 +537,21 @@ class GPQAgent:
         gp.refit(X[:N], (y[:N] - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)
         return result.sweeps
+
+    def _next_state_covariances(self, S2: FloatArray, n_stored: int, bv: FloatArray) -> FloatArray:
+        """``k([s'_i, a_k], BV)`` ``[len(S2) K, m]``: the first ``n_stored`` rows are the stored
+        transitions (entries kept from the last phase where the kernel allows,
+        :class:`NextStateCovariances`), the rest imagined ones (computed)."""
+        kernel = self.gp.kernel
+        if kernel.tracks_basis:
+            return kernel.to_basis(self._candidate_inputs(S2), bv)
+        K_stored = self._next_covariances.get(
+            kernel, self._candidate_inputs, S2[:n_stored], len(self.buffer) - n_stored, bv,
+            self.candidates.shape[0],
+        )  # fmt: skip
+        if len(S2) == n_stored:
+            return K_stored
+        return np.vstack([K_stored, kernel.to_basis(self._candidate_inputs(S2[n_stored:]), bv)])
 
     def _add_imagined(
         self,

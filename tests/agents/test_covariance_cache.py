@@ -1,0 +1,70 @@
+"""NextStateCovariances: the reused covariances equal a fresh computation to the bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tests.agents._tasks import PointToGoal
+
+from geoq.agents import GPQAgent
+from geoq.agents._covariance_cache import NextStateCovariances
+from geoq.kernels import SquaredExponential
+
+
+def _candidate_inputs(candidates: np.ndarray):  # type: ignore[no-untyped-def]
+    def inputs(states: np.ndarray) -> np.ndarray:
+        K = len(candidates)
+        return np.hstack([np.repeat(states, K, axis=0), np.tile(candidates, (len(states), 1))])
+
+    return inputs
+
+
+@pytest.mark.parametrize("period", [None, (2.0, 0.0, 0.0)])
+def test_reused_covariances_equal_a_fresh_computation_bit_for_bit(period) -> None:  # type: ignore[no-untyped-def]
+    """Oracle: ``kernel.to_basis`` on the whole matrix, over phases where the window
+    grows then slides and basis vectors are added, deleted and reordered."""
+    rng = np.random.default_rng(0)
+    kernel = SquaredExponential(lengthscale=(0.3, 0.5, 0.8), period=period)
+    candidates = np.linspace(-1, 1, 5)[:, None]
+    inputs = _candidate_inputs(candidates)
+    states = rng.uniform(-1, 1, size=(400, 2))
+    basis = rng.uniform(-1, 1, size=(30, 3))
+    cache = NextStateCovariances()
+    window = 150
+    for total in (40, 90, 160, 160, 230, 400):
+        first = max(0, total - window)
+        keep = rng.permutation(len(basis))[: len(basis) - 4]  # delete 4, reorder the rest
+        basis = np.vstack([basis[keep], rng.uniform(-1, 1, size=(6, 3))])  # add 6
+        got = cache.get(kernel, inputs, states[first:total], first, basis, len(candidates))
+        np.testing.assert_array_equal(got, kernel.to_basis(inputs(states[first:total]), basis))
+    cache.clear()
+    got = cache.get(kernel, inputs, states[:10], 0, basis, len(candidates))
+    np.testing.assert_array_equal(got, kernel.to_basis(inputs(states[:10]), basis))
+
+
+def test_agents_learn_the_same_with_and_without_reuse(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sliding window (60 transitions), uniform and graph replay: same curves, same bits."""
+
+    def fresh(self, kernel, inputs, next_states, first, basis, n_candidates):  # type: ignore[no-untyped-def]
+        return kernel.to_basis(inputs(next_states), basis)
+
+    def run(replay: str) -> GPQAgent:
+        agent = GPQAgent(PointToGoal(), seed=1, gamma=0.9, max_bv=40, window=60, replay=replay)
+        return agent.learn(300)
+
+    reused = {r: run(r) for r in ("uniform", "graph")}
+    monkeypatch.setattr(NextStateCovariances, "get", fresh)
+    for replay, agent in reused.items():
+        again = run(replay)
+        assert again.episodes == agent.episodes
+        np.testing.assert_array_equal(again.buffer.targets(), agent.buffer.targets())
+        obs = np.linspace(-1, 1, 9)[:, None]
+        np.testing.assert_array_equal(again.predict(obs)[0], agent.predict(obs)[0])
+
+
+def test_a_kernel_that_follows_its_basis_is_refused() -> None:
+    agent = GPQAgent(PointToGoal(), kernel="resistance", max_bv=10)
+    with pytest.raises(ValueError, match="follows its basis"):
+        NextStateCovariances().get(
+            agent.gp.kernel, lambda s: s, np.zeros((1, 1)), 0, np.zeros((1, 2)), 1
+        )

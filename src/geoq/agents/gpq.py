@@ -34,10 +34,11 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    average value seen and the prior std is the spread of values.
 6. **Threads.** ``learn`` and ``train`` run on one BLAS thread (the library's
    policy, :mod:`geoq._threads`): their matrices have a few hundred rows.
-7. **Bounded targets.** Targets are clipped to ``[r_min, r_max] / (1 - gamma)``
-   of the rewards observed so far: every discounted return lies there, and
-   without it regression + max diverged (targets of 3e5 after 9 episodes on the
-   swing-up).
+7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`,
+   ``[r_min, r_max] / (1 - gamma)`` of the rewards declared or observed so far,
+   widened by the rewards of terminating steps (received once, they count by
+   themselves): every discounted return lies there, and without it regression +
+   max diverged (targets of 3e5 after 9 episodes on the swing-up).
 """
 
 from __future__ import annotations

@@ -10,7 +10,6 @@ A longer run: ``HYPOTHESIS_FUZZ_EXAMPLES=500 pytest tests/test_fuzz.py``.
 from __future__ import annotations
 
 import json
-import os
 import warnings
 from pathlib import Path
 from typing import Any
@@ -19,6 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tests._fuzz import fuzz_settings
 
 from geoq._io import ArchiveError
 from geoq._validation import MAX_MAGNITUDE
@@ -26,13 +26,7 @@ from geoq.experiments.config import config_for_scale, config_with_overrides
 from geoq.gp import NumericalWarning, SparseOnlineGP
 from geoq.kernels import GeodesicKernel, ResistanceKernel, SquaredExponential
 
-N_EXAMPLES = int(os.environ.get("HYPOTHESIS_FUZZ_EXAMPLES", "100"))
-FUZZ = settings(
-    max_examples=N_EXAMPLES,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
-)
+FUZZ = fuzz_settings(100)
 
 #: Floats a hostile but realistic user passes: ordinary, extreme, subnormal, non-finite.
 EXTREME = st.one_of(
@@ -209,7 +203,7 @@ ENTRIES = ["mu", "S", "cholesky_factor", "score_alpha", "basis_vectors"]
 
 
 @settings(
-    max_examples=max(4, N_EXAMPLES // 8),
+    max_examples=max(4, FUZZ.max_examples // 8),
     deadline=None,
     derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture],

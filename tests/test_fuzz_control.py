@@ -9,15 +9,15 @@ shortest paths symmetric with a zero diagonal).
 
 from __future__ import annotations
 
-import os
 import warnings
 from typing import Any
 
 import gymnasium
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
+from tests._fuzz import fuzz_settings
 
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent, GPQConfig
@@ -27,13 +27,7 @@ from geoq.learners.q_gp import GPQFunction, QGPConfig
 from geoq.policies import default_policy
 from geoq.rollouts import collect_rollouts
 
-N_EXAMPLES = int(os.environ.get("HYPOTHESIS_FUZZ_EXAMPLES", "60"))
-FUZZ = settings(
-    max_examples=N_EXAMPLES,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
-)
+FUZZ = fuzz_settings(60)
 EXTREME = st.one_of(
     st.floats(-3, 3),
     st.sampled_from([0.0, 1e-300, 5e-324, 1e149, -1e151, 1e300, np.inf, -np.inf, np.nan]),

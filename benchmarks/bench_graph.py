@@ -13,7 +13,7 @@ GP's novelty rule spaces its basis vectors):
   3x of the squared-exponential fit (same budget, budget binding).
 
 Two graph regimes: ``sparse`` (eps = 0.9 plus temporal edges, which connect
-it) and ``dense`` (eps = 0.5, connected by eq. 2 alone). BLAS runs on one
+it) and ``dense`` (eps = 0.5, connected by JC12 eq. 2 alone). BLAS runs on one
 thread (if threadpoolctl is installed) so timings do not depend on contention.
 """
 

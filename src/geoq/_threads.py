@@ -1,30 +1,27 @@
 """The BLAS threading policy: small dense linear algebra runs on one BLAS thread.
 
 The library decides its threads, not the caller's environment. Threaded BLAS on
-the matrices of a sparse GP (a few hundred rows) is slower than one thread: a
-Fig. 3 cell with the resistance kernel at ``max_bv = 200`` took 54 s with
-OpenBLAS's default threads and 11 s with one, on 2 cores (issue 13). So:
+the matrices of a sparse GP (a few hundred rows) is slower than one thread (the
+measurements: ``docs/design-notes.md``). So:
 
 * the GP's batch entry points (``SparseOnlineGP.fit``, ``partial_fit``,
   ``refit``) run under :func:`one_blas_thread`, and so does everything they call
   (kernel hooks, resyncs, the resistance updates);
-* ``SparseOnlineGP.update`` (one point) is *not* wrapped: entering costs ~15-20 us
-  (below), about 10% of an SE update that calls no BLAS at all. What it calls
+* ``SparseOnlineGP.update`` (one point) is *not* wrapped: entering costs a
+  noticeable part of an SE update that calls no BLAS at all. What it calls
   that uses BLAS on matrices of the BV set's size is wrapped instead: the
   resync (``_resync_q``, O(m^3), after every change with the resistance kernel)
   and the resistance kernel's node updates and recomputation;
 * ``SparseOnlineGP.predict`` on up to ``SMALL_BATCH`` = 4096 points (an agent
-  asks for a few points per step) runs on one thread; measured on the 2-core
-  machine while busy, with 200 BVs, default threads vs one: 11 ms vs 0.48 ms
-  for 10 points, 0.91 s vs 0.04 s for 2000 (and still 2.6 s vs 0.9 s for 1e5);
+  asks for a few points per step) runs on one thread;
 * everything else (``predict`` on more points, the exact GP on 1e4 points, a
   user's own numpy) keeps the caller's setting, so large products may use every
   core.
 
-Entering and leaving cost ~15-20 us (numpy and scipy each bring an OpenBLAS:
-one get and two sets of the thread count each), not the ~0.6-2 ms of
+Entering and leaving costs one get and two sets of the thread count per BLAS
+library (numpy and scipy each bring an OpenBLAS), far less than
 ``threadpoolctl.threadpool_limits``, which scans the loaded libraries at every
-call (both measured by ``benchmarks/bench_threads.py``): the BLAS libraries are
+call (``benchmarks/bench_threads.py`` measures both): the BLAS libraries are
 found once, on first use, by a cached :class:`threadpoolctl.ThreadpoolController`.
 Nested entries cost a counter increment. The setting is process-wide (OpenBLAS
 has no per-thread setting): while any Python thread is inside, BLAS calls of

@@ -19,6 +19,10 @@ __all__ = [
     "as_float_matrix",
     "as_float_point",
     "as_float_vector",
+    "as_input_point",
+    "as_inputs",
+    "as_target",
+    "as_targets",
     "check_count",
     "check_magnitude",
     "check_nonnegative",
@@ -116,6 +120,34 @@ def check_magnitude(arr: FloatArray, name: str, what: str) -> FloatArray:
             f"{what}"
         )
     return arr
+
+
+# What the GPs and kernels accept: finite real numbers of magnitude <= MAX_MAGNITUDE
+# (squared distances and deletion scores stay inside float64).
+def as_inputs(X: ArrayLike, name: str = "X", dim: int | None = None) -> FloatArray:
+    """Inputs ``[n, dim]`` (:func:`as_float_matrix`) of magnitude <= ``MAX_MAGNITUDE``."""
+    return check_magnitude(as_float_matrix(X, name, dim), name, "rescale the inputs")
+
+
+def as_input_point(x: ArrayLike, dim: int | None = None) -> FloatArray:
+    """One input ``x`` [dim] (:func:`as_float_point`) of magnitude <= ``MAX_MAGNITUDE``."""
+    return check_magnitude(as_float_point(x, "x", dim), "x", "rescale the inputs")
+
+
+def as_targets(y: ArrayLike, length: int) -> FloatArray:
+    """Targets ``y`` [length] (:func:`as_float_vector`) of magnitude <= ``MAX_MAGNITUDE``."""
+    return check_magnitude(as_float_vector(y, "y", length), "y", "standardise the targets")
+
+
+def as_target(y: Any) -> FloatArray:
+    """One target ``y`` as a 0-d float64 array, finite and of magnitude <= ``MAX_MAGNITUDE``."""
+    try:
+        ya = np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"y must be a finite number, got {y!r}") from exc
+    if ya.ndim != 0 or not np.isfinite(ya):
+        raise ValueError(f"y must be one finite number, got {y!r}")
+    return check_magnitude(ya, "y", "standardise the targets")
 
 
 def check_positive(value: float, name: str) -> float:

@@ -1,7 +1,7 @@
 """Fixed evaluation policies: the swing-up controller and Gaussian policy of the
 paper's experiments, and the two-rooms waypoint policy.
 
-The paper (§5) evaluates a *fixed* stochastic policy
+The paper (JC12 §5) evaluates a *fixed* stochastic policy
 ``pi(a | s) = f(s) + N(0, sigma^2)`` whose deterministic part ``f`` "provides
 close to optimal actions only when the pendulum approaches the target region
 with a fairly low speed". :class:`SwingUpController` is such an ``f``:

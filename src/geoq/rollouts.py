@@ -1,7 +1,7 @@
 """Roll-outs of a policy, vectorised over many roll-outs, and discounted returns.
 
 A roll-out of ``H`` steps records ``(s_t, a_t, r_t, s_{t+1})`` for
-``t = 0 .. H-1`` and the Monte-Carlo targets of the paper (§3),
+``t = 0 .. H-1`` and the Monte-Carlo targets of the paper (JC12 §3),
 
     y_t = sum_{i=0}^{H-1-t} gamma^i r_{t+i},
 

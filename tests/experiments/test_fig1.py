@@ -1,4 +1,4 @@
-"""Fig. 1 data: eq. 2 as written, edge counts over a range of eps."""
+"""Fig. 1 data: JC12 eq. 2 as written, edge counts over a range of eps."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def test_relink_counts_the_pairs_of_eq_2_and_fewer_for_larger_eps():
     for eps in EPS:
         graph = relink(nodes, eps)
         n_edges = graph.adjacency.nnz // 2
-        assert n_edges == np.count_nonzero(np.exp(-d2) > eps)  # brute-force oracle of eq. 2
+        assert n_edges == np.count_nonzero(np.exp(-d2) > eps)  # brute-force oracle of JC12 eq. 2
         counts.append(n_edges)
     assert counts == sorted(counts, reverse=True) and counts[0] > counts[-1]
 
@@ -50,7 +50,7 @@ def test_edge_counts_by_eps_rows(rows):
         assert edges == sorted(edges, reverse=True)
         comps = [r["n_components"] for r in sub]
         assert comps == sorted(comps)  # fewer edges never join components
-        # At its own eps the re-linked graph is the GP's graph (same nodes, eq. 2 only).
+        # At its own eps the re-linked graph is the GP's graph (same nodes, JC12 eq. 2 only).
         own = next(r for r in sub if r["eps"] == e0)
         built = next(r for r in rebuilt if r["eps"] == e0)
         assert own["n_edges"] == built["n_edges"] and own["n_nodes"] == built["n_nodes"]

@@ -97,7 +97,7 @@ def test_variant_learners_change_only_what_they_name():
     f = variant_learner("faithful", tuned)
     assert f.scaling == RAW_UNITS and RAW_UNITS.scale == (1.0, 1.0, 1.0)
     assert (f.amplitude, f.sigma_sp, f.eps) == (1.0, 1.0, 0.3)
-    assert not f.normalize_weights and not f.attach_weights  # the literal eq. 5 sum
+    assert not f.normalize_weights and not f.attach_weights  # the literal JC12 eq. 5 sum
     assert (f.noise, f.sigma_se, f.kernel) == (0.2, 0.1, "interpolated")  # not stated: tuned
     p = variant_learner("pd_novelty", tuned)
     assert p == tuned.replace(pd_novelty=True)

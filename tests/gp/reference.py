@@ -110,7 +110,7 @@ def dtc_posterior(
     """DTC (projected process) ``alpha, C`` straight from the textbook formula.
 
     ``Sigma = (K_BB + K_BX K_XB / sigma0^2)^{-1}``; ``alpha = Sigma K_BX y / sigma0^2``;
-    ``C = -K_BB^{-1} + Sigma`` (Rasmussen & Williams 2006, eq. 8.26-8.27 in our signs).
+    ``C = -K_BB^{-1} + Sigma`` (RW06 eq. 8.26-8.27, in our signs).
     """
     Sigma = np.linalg.inv(Kbb + Kbx @ Kbx.T / noise)
     alpha = Sigma @ Kbx @ y / noise

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from geoq.gp import NumericalWarning, SparseOnlineGP, sparse_online
+from geoq.gp import NumericalWarning, SparseOnlineGP, _stream
 from geoq.kernels import GeodesicKernel, ResistanceKernel, SquaredExponential
 
 RNG = np.random.default_rng(1)
@@ -90,7 +90,7 @@ def test_an_interrupted_batch_restores_the_kernels_graph_too(make, monkeypatch) 
         before = _state(gp)
         nodes = kernel.graph.n_nodes
         seen = {"rows": 0, "nodes": nodes}
-        step = sparse_online.online_step_lower
+        step = _stream.online_step_lower
 
         def interrupted(*args):  # type: ignore[no-untyped-def]
             seen["rows"] += 1
@@ -99,7 +99,7 @@ def test_an_interrupted_batch_restores_the_kernels_graph_too(make, monkeypatch) 
                 raise KeyboardInterrupt
             return step(*args)
 
-        monkeypatch.setattr(sparse_online, "online_step_lower", interrupted)
+        monkeypatch.setattr(_stream, "online_step_lower", interrupted)
         with pytest.raises(KeyboardInterrupt):
             gp.partial_fit(X[15:], Y[15:])
         monkeypatch.undo()

@@ -115,7 +115,7 @@ def test_eq5_kernel_far_from_every_node_is_finite(
         mean, std = gp.predict(far, return_std=True)
         assert _finite(mean, std) and np.all(std >= 0)
         if attach and normalize:  # a huge attaching cost: the prior far away (unnormalised,
-            # every weight underflows to 0 and eq. 5's sum is 0, as the formula says)
+            # every weight underflows to 0 and JC12 eq. 5's sum is 0, as the formula says)
             np.testing.assert_array_equal(mean[:3], 0.0)
             np.testing.assert_allclose(std[:3], 1.0)
         gp.update(far[1], 0.5)  # an update far away keeps the state finite

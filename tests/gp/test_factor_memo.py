@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from geoq.gp import NumericalWarning, SparseOnlineGP
+from geoq.gp._resync import FactorMemo
 from geoq.gp.numerics import robust_cholesky
 from geoq.gp.pd_novelty import PDNoveltyOnlineGP
-from geoq.gp.sparse_online import _FactorMemo
 from geoq.kernels import GeodesicKernel, ResistanceKernel
 
 
@@ -35,16 +35,16 @@ def test_reusing_the_factor_gives_the_numbers_of_factorising_every_time(
 ) -> None:
     X, y = _data()
     hits = []
-    same_input = _FactorMemo.same_input
+    same_input = FactorMemo.same_input
 
-    def spy(self: _FactorMemo, K: np.ndarray, config: object) -> bool:
+    def spy(self: FactorMemo, K: np.ndarray, config: object) -> bool:
         hit = same_input(self, K, config)  # type: ignore[arg-type]
         hits.append(hit)
         return hit
 
     def fit(memo: bool) -> tuple[SparseOnlineGP, tuple[np.ndarray, ...]]:
         with monkeypatch.context() as mp:
-            mp.setattr(_FactorMemo, "same_input", spy if memo else lambda *_: False)
+            mp.setattr(FactorMemo, "same_input", spy if memo else lambda *_: False)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NumericalWarning)
                 gp = make_gp()

@@ -1,4 +1,5 @@
-"""MDPGraph.add_node (fused neighbour selection) against the numpy eq. 2 selection, bit for bit."""
+"""MDPGraph.add_node (fused neighbour selection) against the numpy JC12 eq. 2 selection,
+bit for bit."""
 
 from __future__ import annotations
 

@@ -12,9 +12,9 @@ from geoq.kernels.graph_distance import NEGLIGIBLE_WEIGHT
 
 
 def reference_sp(k: GeodesicKernel, X: np.ndarray, numpy_sums: bool = False) -> np.ndarray:
-    """Eqs. 4-5 for the rows of ``X``, written out with plain numpy (the general path).
+    """JC12 eqs. 4-5 for the rows of ``X``, written out with plain numpy (the general path).
 
-    The eq. 5 sums are the defined ones (:func:`row_sums`, :func:`row_dots`), or
+    The JC12 eq. 5 sums are the defined ones (:func:`row_sums`, :func:`row_dots`), or
     numpy's (``numpy_sums``; equal up to the summation order)."""
     g = k.graph
     P = g.shortest_paths

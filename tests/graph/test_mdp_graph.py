@@ -1,4 +1,4 @@
-"""MDPGraph: eq. 2 by brute force and P == scipy Dijkstra after every add and delete."""
+"""MDPGraph: JC12 eq. 2 by brute force and P == scipy Dijkstra after every add and delete."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def brute_weights(
     period: np.ndarray | None = None,
     temporal: bool = False,
 ) -> np.ndarray:
-    """Dense eq. 2 weights (inf = no edge) by Python loops, plus the temporal chains."""
+    """Dense JC12 eq. 2 weights (inf = no edge) by Python loops, plus the temporal chains."""
     n = len(nodes)
     W = np.full((n, n), np.inf)
 
@@ -199,7 +199,7 @@ def test_periodic_distance_wraps_angles():
 
 
 def test_temporal_edges_link_successive_nodes_of_a_rollout():
-    g = MDPGraph(1.0, temporal_edges=True)  # eps = 1: eq. 2 never links
+    g = MDPGraph(1.0, temporal_edges=True)  # eps = 1: JC12 eq. 2 never links
     for x in ([0.0, 0.0], [5.0, 0.0], [10.0, 0.0]):
         g.add_node(x)
     g.start_rollout()

@@ -64,14 +64,14 @@ def data() -> Data:
 
 
 def nearest(temporal: bool = False) -> GeodesicKernel:
-    """Eq. 4 with wrap-aware angles."""
+    """JC12 eq. 4 with wrap-aware angles."""
     return GeodesicKernel(
         eps=0.3, method="nearest", sigma_sp=0.01, period=PERIOD, temporal_edges=temporal
     )
 
 
 def interpolated(temporal: bool = False) -> GeodesicKernel:
-    """Eq. 5, normalised and with eq. 4's attaching edge: the literal eq. 5 stalls at one BV."""
+    """JC12 eq. 5, normalised, with the attaching edge kept: the literal sum stalls at one BV."""
     return GeodesicKernel(
         eps=0.3,
         method="interpolated",

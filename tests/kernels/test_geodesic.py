@@ -1,4 +1,4 @@
-"""GeodesicKernel (eqs. 3-5) against brute-force loops; ResistanceKernel is PD."""
+"""GeodesicKernel (JC12 eqs. 3-5) against brute-force loops; ResistanceKernel is PD."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def sqdist(a, b):
 
 
 def brute_eq4(nodes, P, x):
-    """SP(x*, x_j) = ||x* - x_i||^2 + P_ij with x_i the nearest node (eq. 4)."""
+    """SP(x*, x_j) = ||x* - x_i||^2 + P_ij with x_i the nearest node (JC12 eq. 4)."""
     best, bi = math.inf, -1
     for i, node in enumerate(nodes):
         r2 = sqdist(x, node)
@@ -76,7 +76,7 @@ def brute_eq5(nodes, P, x, sigma_se, normalize=False, attach=False):
 
 
 def brute_pair(nodes, P, x, y, method, sigma_se=0.01, normalize=False, attach=False):
-    """SP between two arbitrary points (pendant leaves / bilinear eq. 5), 0 if identical."""
+    """SP between two arbitrary points (pendant leaves / bilinear JC12 eq. 5), 0 if identical."""
     if sqdist(x, y) == 0.0:
         return 0.0
     if method == "nearest":
@@ -98,7 +98,7 @@ def k_of(sp, amplitude=1.0, sigma_sp=1.0):
     return amplitude * np.exp(-(np.asarray(sp) ** 2) / (2 * sigma_sp))
 
 
-# -- eq. 3, 4, 5 --------------------------------------------------------------------------
+# -- JC12 eq. 3, 4, 5 --------------------------------------------------------------------------
 
 
 def test_eq3_convention_sigma_sp_not_squared():
@@ -138,7 +138,7 @@ def test_eq4_eq5_match_brute_force(method, normalize, attach):
         )
         np.testing.assert_allclose(row, ref, rtol=1e-12, atol=1e-14)
     np.testing.assert_array_equal(SP[0], P[3])  # a point on a node uses the node's P row
-    # the kernel: eq. 3 of SP, through every entry point the GP uses
+    # the kernel: JC12 eq. 3 of SP, through every entry point the GP uses
     K = k_of(SP, sigma_sp=2.0)
     np.testing.assert_allclose(gk(Q, nodes), K, rtol=1e-12, atol=1e-300)
     np.testing.assert_allclose(gk.to_basis(Q, gk.graph.nodes), K, rtol=1e-12, atol=1e-300)
@@ -163,7 +163,7 @@ def test_normalised_weights_far_from_nodes_fall_back_to_nearest_node_row():
     unnormalised = build(
         GeodesicKernel(eps=0.3, method="interpolated", sigma_se=1e-3), gk.graph.nodes
     )
-    np.testing.assert_array_equal(unnormalised.shortest_path_to_nodes(far), 0.0)  # eq. 5 as is
+    np.testing.assert_array_equal(unnormalised.shortest_path_to_nodes(far), 0.0)  # JC12 eq. 5 as is
     w = gk.graph_distance.interpolation_weights(np.array([[0.3, 0.1], [2.0, 1.0]]))
     np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-15)
 
@@ -236,7 +236,7 @@ def test_disconnected_components_give_exactly_zero_and_no_nan():
         assert np.isinf(P[0, 3]) and np.isfinite(P[0, 2])
         K = gk.basis_gram(gk.graph.nodes)
         assert np.all(K[:3, 3:] == 0.0) and np.all(K[:3, :3] > 0)
-        # near A: B's eq. 5 weights underflow to 0, 0 * inf := 0 -> finite, no NaN
+        # near A: B's JC12 eq. 5 weights underflow to 0, 0 * inf := 0 -> finite, no NaN
         q = np.array([[0.2, 0.1]])
         assert np.all(np.exp(-gk.graph.squared_distances_to_nodes(q)[0, 3:] / 0.02) == 0)
         Kq = gk(q, gk.graph.nodes)
@@ -247,7 +247,7 @@ def test_disconnected_components_give_exactly_zero_and_no_nan():
     w_b = np.exp(-mid.graph.squared_distances_to_nodes(q)[0, 3:] / 1.0)
     assert np.all(w_b > 0) and np.all(w_b < 1e-12 * 0.9)
     assert np.all(np.isfinite(mid.shortest_path_to_nodes(q)[0, :3]))
-    # a non-negligible weight on a node with no path makes SP infinite (eq. 5 literally)
+    # a non-negligible weight on a node with no path makes SP infinite (JC12 eq. 5 literally)
     wide = build(GeodesicKernel(eps=0.3, method="interpolated", sigma_se=10.0), A + B)
     q = np.array([[0.2, 0.1]])
     assert np.all(wide.shortest_path_to_nodes(q) == np.inf)

@@ -1,6 +1,6 @@
 """The GP's fused per-point geodesic row against the numpy definitions, bit for bit.
 
-Both paths sum eq. 5 by the same compiled :func:`row_sum` / :func:`row_dot`, so they
+Both paths sum JC12 eq. 5 by the same compiled :func:`row_sum` / :func:`row_dot`, so they
 agree by construction; numpy's own sums are only a tolerance check of those."""
 
 from __future__ import annotations
@@ -10,7 +10,14 @@ import pytest
 
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import GeodesicKernel
-from geoq.kernels._geodesic_row import row_dot, row_dots, row_sum, row_sums
+from geoq.kernels._geodesic_row import (
+    geodesic_r2,
+    row_dot,
+    row_dots,
+    row_sum,
+    row_sums,
+    squares_over,
+)
 from geoq.kernels.geodesic import GraphKernel
 
 pytestmark = pytest.mark.filterwarnings("ignore::geoq.gp.numerics.NumericalWarning")
@@ -41,6 +48,18 @@ SETTINGS = [
 def _stream(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
     X = np.cumsum(rng.normal(scale=0.15, size=(n, 3)), axis=0)
     return X, np.sin(X).sum(axis=1)
+
+
+def test_jc12_eq3_r2_is_numpys_sp_squared_over_sigma_sp() -> None:
+    """The one definition of JC12 eq. 3's r^2 gives numpy's ``SP * SP / sigma_sp`` bit for
+    bit (so the batch and per-point paths agree), with inf for overflow and unreachable."""
+    rng = np.random.default_rng(3)
+    SP = np.concatenate([rng.exponential(size=40), [0.0, 1e200, np.inf]]).reshape(1, -1)
+    for sigma_sp in (1.0, 0.01, 3.7):
+        with np.errstate(over="ignore"):
+            want = SP * SP / sigma_sp
+        np.testing.assert_array_equal(squares_over(SP, sigma_sp), want)
+        assert [geodesic_r2(float(v), sigma_sp) for v in SP[0]] == want[0].tolist()
 
 
 def test_row_sums_are_sums_to_float64_accuracy() -> None:

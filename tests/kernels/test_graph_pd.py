@@ -122,7 +122,7 @@ def test_coinciding_points_are_short_circuits():
 
 
 def test_temporal_bridge_is_a_parallel_resistor():
-    g = MDPGraph(0.99, temporal_edges=True)  # eq. 2 links only very close points
+    g = MDPGraph(0.99, temporal_edges=True)  # JC12 eq. 2 links only very close points
     d = ResistanceDistance(g)
     for x in ([0.0, 0.0], [0.05, 0.0], [0.1, 0.0], [0.1, 0.05]):
         d.basis_added(np.asarray(x))

@@ -1,6 +1,6 @@
 """The paper's tabular TD baseline: TD(0) or SARSA(0) policy evaluation on a state-action grid.
 
-Paper §5: "As a baseline we used the TD approximation of the corresponding
+JC12 §5: "As a baseline we used the TD approximation of the corresponding
 value function, based on 800 episodes of length 150. For TD the state space
 was discretized to contain 3600 states and the action space to contain 80."
 Here: a 60 x 60 grid over ``theta in [-pi, pi)`` and ``omega in [-8, 8]``

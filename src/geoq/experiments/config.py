@@ -1,4 +1,4 @@
-"""Settings of the paper reproduction (§5), as frozen dataclasses (CleanRL style).
+"""Settings of the paper reproduction (JC12 §5), as frozen dataclasses (CleanRL style).
 
 Two presets: ``quick`` (``make demo``: minutes on 2 cores) and ``paper`` (the
 full protocol: >= 10 seeds, ~10 budgets between 5 and 200). Every result file
@@ -92,7 +92,7 @@ class ReproConfig:
     graph_eps: tuple[float, ...] = (0.3, 0.5)
     """Graph thresholds drawn in Fig. 1 (paper: 0.3 and 0.5)."""
     edge_count_eps: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
-    """Thresholds at which the Fig. 1 graphs' edges are counted (``fig1_eps.csv``): eq. 2
+    """Thresholds at which the Fig. 1 graphs' edges are counted (``fig1_eps.csv``): JC12 eq. 2
     gives fewer edges for a larger ``eps``, where the paper's text says more."""
     graph_max_bv: int = 200
     """Basis budget of the GP that builds the Fig. 1 graphs."""

@@ -8,12 +8,12 @@ distance the Euclidean one, and a graph of isolated nodes gives zero
 covariance between almost every pair.
 
 Which way ``eps`` works. The paper's text says the number of edges "increases
-exponentially with eps", but its eq. 2 links ``x_i`` and ``x_t`` iff
+exponentially with eps", but its JC12 eq. 2 links ``x_i`` and ``x_t`` iff
 ``exp(-||x_i - x_t||^2) > eps``, i.e. iff ``||x_i - x_t||^2 < -ln(eps)``: a *larger*
 ``eps`` is a *smaller* radius and gives *fewer* edges, so Fig. 1 (b) (``eps = 0.5``)
-must have fewer edges than (a) (``eps = 0.3``). geoq follows eq. 2 as written.
+must have fewer edges than (a) (``eps = 0.3``). geoq follows JC12 eq. 2 as written.
 :func:`edge_counts_by_eps` measures both readings' consequence on the Fig. 1 data:
-the edges of the same node set re-linked by eq. 2 at each ``eps`` (monotone
+the edges of the same node set re-linked by JC12 eq. 2 at each ``eps`` (monotone
 non-increasing by construction), and of the graph rebuilt online at each ``eps``
 (the node set then changes too, since novelty depends on the kernel).
 """
@@ -120,7 +120,7 @@ def build_graphs(
 
 
 def relink(nodes: FloatArray, eps: float, period: FloatArray | None = None) -> MDPGraph:
-    """The graph of eq. 2 at threshold ``eps`` over fixed ``nodes`` [n, d] (scaled units).
+    """The graph of JC12 eq. 2 at threshold ``eps`` over fixed ``nodes`` [n, d] (scaled units).
 
     Proximity edges only (no temporal edges); ``period`` as in :class:`MDPGraph`.
     """
@@ -142,7 +142,7 @@ def edge_counts_by_eps(
     Rows of two kinds (``mode``):
 
     * ``"same nodes"``: for each ``e0`` in ``node_eps`` (the Fig. 1 panels), the basis
-      set the GP kept with ``eps = e0`` re-linked by eq. 2 at every ``eps`` in
+      set the GP kept with ``eps = e0`` re-linked by JC12 eq. 2 at every ``eps`` in
       ``eps_values``: the effect of the threshold alone.
     * ``"rebuilt"``: a GP fitted with ``eps`` itself (what Fig. 1 would show for that
       ``eps``; ``node_eps`` is then ``eps``).

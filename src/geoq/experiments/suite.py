@@ -44,6 +44,7 @@ import geoq
 from geoq._io import atomic_write_json, atomic_write_text
 from geoq.experiments.fig3 import FIG3_COLUMNS
 from geoq.experiments.plotting import plot_budget_curves
+from geoq.experiments.reproduce import save_figure, write_csv
 from geoq.experiments.seeding import STREAM
 from geoq.experiments.suite_cells import (
     BudgetCell,
@@ -306,8 +307,6 @@ def run_suite(
     ]
     map_rows = run_sweep(map_cells, map_cell, cells_dir / "maps", desc="suite maps", **sweep)
     maps = dict(zip(map_tasks, map_rows, strict=True))
-
-    from geoq.experiments.reproduce import save_figure, write_csv
 
     for t in task_ids:
         d = out / task_slug(t)

@@ -2,7 +2,7 @@
 
 * Squared-exponential length-scales (one per input dimension), prior variance
   and noise variance: maximum exact-GP evidence on the tuning roll-outs
-  (:func:`geoq.gp.evidence.fit_squared_exponential`), paper §3's advice, from its
+  (:func:`geoq.gp.evidence.fit_squared_exponential`), JC12 §3's advice, from its
   data-driven start plus :data:`EVIDENCE_RESTARTS` seeded restarts. The evidence
   at the start and at the end, every restart's end, whether the fit converged,
   the parameters left at a bound and the fit's warnings go into ``tuning.json``
@@ -60,7 +60,7 @@ __all__ = [
 SIGMA_SP_GRID: tuple[float, ...] = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 #: Candidate ``sigma_se`` of JC12 eq. 5 (the paper: "small").
 SIGMA_SE_GRID: tuple[float, ...] = (0.01, 0.1)
-#: Eq. 5 variants ``(normalize_weights, attach_weights)``: the paper's literal sum first,
+#: JC12 eq. 5 variants ``(normalize_weights, attach_weights)``: the paper's literal sum first,
 #: then the normalised sum with the attaching edge kept (a soft JC12 eq. 4).
 EQ5_VARIANTS: tuple[tuple[bool, bool], ...] = ((False, False), (True, True))
 #: Columns of ``tuning.csv`` (one row per validated geodesic candidate).

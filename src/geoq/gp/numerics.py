@@ -246,9 +246,8 @@ def project_whitened_covariance(S: FloatArray) -> tuple[FloatArray, int]:
     ``0 <= S <= I`` in whitened coordinates. Re-anchoring a sparse GP keeps the old
     posterior of ``f_BV`` under the *new* prior, and when a graph kernel's new ``K_BV``
     is nearly singular that posterior is far wider than the prior in some directions
-    (``S`` eigenvalues up to ~1e8 were seen, giving predictive variances 1e8 times the
-    prior). The projection is the nearest valid ``S`` in the Frobenius norm; eigenvalues
-    within ``VAR_ROUNDING`` of ``[0, 1]`` are left alone.
+    (``docs/design-notes.md``). The projection is the nearest valid ``S`` in the
+    Frobenius norm; eigenvalues within ``VAR_ROUNDING`` of ``[0, 1]`` are left alone.
     """
     S = 0.5 * (S + S.T)
     # Two Cholesky attempts, far cheaper than the eigendecomposition; S <= I first: after

@@ -27,10 +27,9 @@ Numerical health
 * ``Q = K_BV^{-1}`` is never formed. The state keeps the upper Cholesky factor
   ``R`` of ``K_BV`` (a column appended per added BV, a rank-one Cholesky update per
   deleted BV, O(m^2)) and ``diag(Q)`` (O(m) per change, for the deletion scores).
-  Novelty is the Cholesky pivot ``gamma = k(x,x) - |R^{-T} k|^2``. An explicit
-  inverse updated by rank-one terms was seen to blow up (with ``tol = 1e-6`` and
-  hundreds of BVs ``k^T Q k`` loses every digit, spurious BVs get in, ``K_BV`` turns
-  numerically singular); the factor keeps ``gamma`` accurate to rounding.
+  Novelty is the Cholesky pivot ``gamma = k(x,x) - |R^{-T} k|^2``, accurate to
+  rounding (an explicit inverse updated by rank-one terms is not:
+  ``docs/design-notes.md``).
 * Every ``resync_every`` changes of the BV set ``diag(Q)`` is recomputed exactly
   from ``R`` (the largest relative drift found is
   :attr:`OnlineDiagnostics.max_q_drift`), and for a basis-tracking kernel (whose
@@ -39,9 +38,8 @@ Numerical health
 * ``C`` is symmetric bit for bit (every update adds symmetric terms).
 * Indefinite kernels (the geodesic kernel): negative novelty is treated as "not
   novel" and counted; below rounding level ``v = R^{-T} k_x`` is scaled onto
-  ``|v|^2 = k(x, x)`` first (``novelty_clipped``; unscaled, ``|v|`` reached 1e3
-  and the whitened covariance lost positive definiteness within a few hundred
-  steps). An indefinite ``K_BV`` at a resync or refit goes through the jitter
+  ``|v|^2 = k(x, x)`` first (``novelty_clipped``; why: ``docs/design-notes.md``).
+  An indefinite ``K_BV`` at a resync or refit goes through the jitter
   policy of :mod:`geoq.gp.numerics` and, if even that fails, eigenvalue clipping;
   negative predictive variances are clipped at 0. A noise variance below
   ``CONFIG.noise_floor * k(x, x)`` is raised to it in the updates
@@ -59,7 +57,6 @@ import copy
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from os import PathLike
 from typing import Any, Literal, overload
 
@@ -70,25 +67,25 @@ from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import (
-    as_float_matrix,
-    as_float_point,
-    as_float_vector,
+    as_input_point,
+    as_inputs,
+    as_target,
+    as_targets,
     check_count,
-    check_magnitude,
     check_novelty_tol,
     check_positive,
 )
 from geoq.gp._nb_delete import refresh_scores
-from geoq.gp._nb_linalg import mirror_lower
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
 from geoq.gp._predict import FACTOR_ROUTE_MIN, predict_chunked, predict_factored
-from geoq.gp._step import N_WORK, online_step_lower, se_stream
+from geoq.gp._resync import FactorMemo, dtc_posterior, factor_gram, reanchor
+from geoq.gp._step import N_WORK
+from geoq.gp._stream import stream
 from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
 from geoq.gp.numerics import (
     CONFIG,
     NumericalWarning,
     NumericsConfig,
-    project_whitened_covariance,
     robust_cholesky,
 )
 from geoq.kernels.base import Kernel
@@ -98,32 +95,14 @@ from geoq.kernels.base import Kernel
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
 
 
-@dataclass(frozen=True)
-class _FactorMemo:
-    """The last ``K_BV`` a GP factorised and what :func:`robust_cholesky` made of it."""
-
-    K: FloatArray  # [m, m] the symmetrised K_BV
-    config: NumericsConfig
-    R: FloatArray  # [m, m] upper factor (read-only)
-    jitter_events: int
-    eig_clips: int
-
-    def same_input(self, K: FloatArray, config: NumericsConfig) -> bool:
-        """Whether ``K`` is :attr:`K` bit for bit (signed zeros included) under ``config``."""
-        return (
-            config == self.config
-            and K.shape == self.K.shape
-            and np.array_equal(K.view(np.uint64), self.K.view(np.uint64))
-        )
-
-
 class SparseOnlineGP:
     """Sparse online GP regression (Csató & Opper 2002) with a basis-vector budget.
 
     Parameters
     ----------
-    kernel : covariance function; the GP talks to it only through ``to_basis``,
-        ``diag``, ``basis_gram`` and the ``basis_added/removed/cleared`` hooks.
+    kernel : covariance function; the GP talks to it only through the protocol of
+        :class:`~geoq.kernels.base.Kernel` (``diag``, ``to_basis``, ``basis_gram``,
+        the ``basis_*`` hooks and the optional ``fused_row`` / ``se_parameters``).
     noise : observation-noise *variance* ``sigma0^2`` (> 0).
     max_bv : basis-vector budget (integer >= 1).
     tol : relative novelty threshold: ``x`` becomes a BV iff ``gamma >= tol * k(x, x)``.
@@ -139,10 +118,10 @@ class SparseOnlineGP:
 
     Notes
     -----
-    The squared-exponential kernel (non-subclassed) streams through one compiled
-    loop that evaluates ``k_x`` in numba; every other kernel (and in particular
-    basis-tracking ones, whose hooks Python must call between points) goes
-    through the per-point path. Both use the same compiled step.
+    A kernel that offers ``se_parameters`` streams through one compiled loop that
+    evaluates ``k_x`` in numba; every other kernel (in particular basis-tracking
+    ones, whose hooks Python must call between points) goes through the per-point
+    path (:mod:`geoq.gp._stream`). Both use the same compiled step.
     """
 
     def __init__(
@@ -187,7 +166,7 @@ class SparseOnlineGP:
         self._work = np.zeros((N_WORK, cap))
         self._counts = Counters()  # every counter, and whether the warning was shown
         self._changes = 0
-        self._factor_memo: _FactorMemo | None = None  # the last K_BV factorised
+        self._factor_memo: FactorMemo | None = None  # the last K_BV factorised
 
     def _set_dim(self, d: int) -> None:
         if self._dim is None:
@@ -255,19 +234,16 @@ class SparseOnlineGP:
         warnings.warn(repair_warning(repairs), NumericalWarning, stacklevel=3)
 
     # ------------------------------------------------------------ validation
-    # update, fit, partial_fit, refit and predict accept the same inputs: finite real
-    # numbers of magnitude <= MAX_MAGNITUDE (squared distances and deletion scores stay
-    # inside float64), checked for the whole batch before anything changes.
+    # update, fit, partial_fit, refit and predict accept what geoq._validation's
+    # as_inputs / as_targets accept, checked for the whole batch before anything changes.
     def _check_X(self, X: ArrayLike, name: str = "X", dim: int | None = -1) -> FloatArray:
-        Xa = as_float_matrix(X, name, self._dim if dim == -1 else dim)
-        return check_magnitude(Xa, name, "rescale the inputs")
+        return as_inputs(X, name, self._dim if dim == -1 else dim)
 
     def _check_Xy(
         self, X: ArrayLike, y: ArrayLike, dim: int | None = -1
     ) -> tuple[FloatArray, FloatArray]:
         Xa = self._check_X(X, "X", dim)
-        ya = as_float_vector(y, "y", Xa.shape[0])
-        return Xa, check_magnitude(ya, "y", "standardise the targets")
+        return Xa, as_targets(y, Xa.shape[0])
 
     # --------------------------------------------------------------- updates
     def update(self, x: ArrayLike, y: float) -> SparseOnlineGP:
@@ -276,14 +252,7 @@ class SparseOnlineGP:
         A rejected input (wrong shape, NaN/inf) raises ``ValueError`` and leaves
         the model unchanged.
         """
-        xa = check_magnitude(as_float_point(x, "x", self._dim), "x", "rescale the inputs")
-        try:
-            ya = np.asarray(y, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"y must be a finite number, got {y!r}") from exc
-        if ya.ndim != 0 or not np.isfinite(ya):
-            raise ValueError(f"y must be one finite number, got {y!r}")
-        check_magnitude(ya, "y", "standardise the targets")
+        xa, ya = as_input_point(x, self._dim), as_target(y)
         self._stream(xa[None, :], ya.reshape(1))
         self._warn_once()
         return self
@@ -360,85 +329,9 @@ class SparseOnlineGP:
         new.kernel.bind(new)
         return new
 
-    def _fast_kernel(self) -> tuple[FloatArray, FloatArray, float] | None:
-        """``(inv_ls [d], period [d], variance)`` if the compiled SE loop applies
-        (the kernel offers :meth:`~geoq.kernels.base.Kernel.se_parameters`)."""
-        params = self.kernel.se_parameters()
-        if params is None or self._dim is None:
-            return None
-        lengthscale, period_or_none, variance = params
-        inv_ls = np.broadcast_to(1.0 / np.asarray(lengthscale, dtype=np.float64), (self._dim,))
-        period = np.zeros(self._dim) if period_or_none is None else np.asarray(period_or_none)
-        return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(variance)
-
     def _stream(self, X: FloatArray, y: FloatArray) -> None:
-        if X.shape[0] == 0:
-            return
-        self._set_dim(X.shape[1])
-        fast = self._fast_kernel()
-        if fast is None:
-            self._stream_points(X, y)
-        else:
-            inv_ls, period, variance = fast
-            t = 0
-            while t < X.shape[0]:
-                t, self._m, changes = se_stream(
-                    X, y, t, inv_ls, period, variance, self.noise, self.tol,
-                    self.config.novelty_floor, self.config.noise_floor, self.max_bv,
-                    self._bv, self._mu, self._S, self._R, self._alpha, self._mdiag, self._m,
-                    self._kbuf, self._work, self._T, self._counts.step,
-                    self.resync_every - self._changes,
-                )  # fmt: skip
-                self._changes += changes
-                if self._changes >= self.resync_every:
-                    self._resync_q()
-
-    def _stream_points(self, X: FloatArray, y: FloatArray) -> None:
-        """Per-point path: kernel in Python, step compiled, hooks in between points.
-
-        The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
-        mirrored before a resync and when the batch ends (also on an error). A graph
-        kernel's covariance row comes from its fused compiled path
-        (``Kernel.fused_row``), else from ``to_basis``.
-        """
-        kernel = self.kernel
-        fused = kernel.fused_row()
-        row_exponent, variance = (None, 1.0) if fused is None else fused
-        S, kbuf, bv = self._S, self._kbuf, self._bv
-        args = (
-            self.noise, self.tol, self.config.novelty_floor, self.config.noise_floor,
-            self.max_bv, bv, self._mu, S, self._R, self._alpha, self._mdiag,
-        )  # fmt: skip
-        work, T, counters = self._work, self._T, self._counts.step
-        repair = self._novelty_repair()
-        try:
-            for x, yt in zip(X, y.tolist(), strict=True):
-                m = self._m
-                expo = None if row_exponent is None else row_exponent(x, bv, m)
-                if expo is not None:
-                    np.exp(expo, out=kbuf[:m])
-                    kxx = scale = variance
-                else:
-                    kxx, scale = self._kernel_row(x, m), 1.0
-                if repair is not None:
-                    kxx = repair(kbuf, scale, kxx, m)
-                self._m, added, deleted = online_step_lower(
-                    kbuf, scale, kxx, yt, x, *args, m, work, T, counters
-                )
-                if added < 0:
-                    raise ValueError(f"kernel returned non-finite covariances at x={x}; check it")
-                if added:
-                    kernel.basis_added(x.copy())
-                    if deleted >= 0:
-                        kernel.basis_removed(int(deleted))
-                        self._changes += 2
-                    else:
-                        self._changes += 1
-                if self._changes >= self.resync_every:
-                    mirror_lower(S, self._m)
-                    self._resync_q()
-        finally:
-            mirror_lower(S, self._m)
+        """Apply ``X`` [N, d], ``y`` [N] in order (:func:`geoq.gp._stream.stream`)."""
+        stream(self, X, y)
 
     def _novelty_repair(self) -> Callable[[FloatArray, float, float, int], float] | None:
         """Hook of the per-point path: ``(k, scale, k(x, x), m) -> k(x, x)`` used by the step.
@@ -449,41 +342,13 @@ class SparseOnlineGP:
         """
         return None
 
-    def _kernel_row(self, x: FloatArray, m: int) -> float:
-        """``k(x, BV)`` into ``self._kbuf[:m]`` by ``to_basis``; returns ``k(x, x)``."""
-        kx = np.asarray(self.kernel.to_basis(x[None, :], self._bv[:m]), dtype=np.float64)
-        kxx = np.asarray(self.kernel.diag(x[None, :]), dtype=np.float64)
-        if kx.shape != (1, m) or kxx.shape != (1,):
-            raise ValueError(
-                f"kernel returned shapes {kx.shape} and {kxx.shape}; expected (1, {m}) and (1,)"
-            )
-        self._kbuf[:m] = kx[0]
-        return float(kxx[0])
-
     # ------------------------------------------------------- resync / refit
     def _factor_gram(self) -> FloatArray:
-        """Upper Cholesky factor ``R`` [m, m] of the current ``K_BV`` under the jitter policy
-        (read-only: the caller copies it into the state).
-
-        The factor is a function of ``K_BV`` and ``config`` alone, so it is kept for the
-        last ``K_BV`` factorised: when a resync finds the same matrix bit for bit (the
-        GP added a point and deleted it again, and the kernel's ``K_BV`` came back with
-        the graph; with an indefinite ``K_BV`` each factorisation costs an
-        eigendecomposition), the stored factor and its repair counts are reused.
-        """
-        m = self._m
-        K = np.asarray(self.kernel.basis_gram(self._bv[:m]), dtype=np.float64)  # [m, m]
-        if K.shape != (m, m) or not np.all(np.isfinite(K)):
-            raise ValueError(f"kernel.basis_gram returned shape {K.shape} or non-finite values")
-        K = 0.5 * (K + K.T)
-        memo = self._factor_memo
-        if memo is not None and memo.same_input(K, self.config):
-            R, jit, clips = memo.R, memo.jitter_events, memo.eig_clips
-        else:
-            L, jit, clips = robust_cholesky(K, "K_BV", self.config)
-            R = np.ascontiguousarray(L.T)
-            R.flags.writeable = False
-            self._factor_memo = _FactorMemo(K, self.config, R, jit, clips)
+        """Upper factor ``R`` [m, m] of the current ``K_BV`` (read-only; the memo of
+        :func:`~geoq.gp._resync.factor_gram` is this GP's), repairs counted."""
+        R, jit, clips, self._factor_memo = factor_gram(
+            self.kernel, self._bv[: self._m], self.config, self._factor_memo
+        )
         self._counts.python["jitter_events"] += jit
         self._counts.python["eig_clips"] += clips
         return R
@@ -491,9 +356,8 @@ class SparseOnlineGP:
     def _refresh_scores(self, record_drift: bool = True) -> None:
         """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.
 
-        Compiled and single-threaded (:func:`~geoq.gp._nb_delete.refresh_scores`): for the
-        small matrices here a threaded BLAS call was seen to cost milliseconds on a
-        busy machine.
+        Compiled and single-threaded (:func:`~geoq.gp._nb_delete.refresh_scores`; why:
+        ``docs/design-notes.md``).
         """
         Z = np.empty_like(self._T)
         drift = refresh_scores(
@@ -518,14 +382,10 @@ class SparseOnlineGP:
             return
         if self.kernel.tracks_basis:
             R_new = self._factor_gram()
-            Tm = scipy.linalg.solve_triangular(
-                R_new, np.ascontiguousarray(self._R[:m, :m].T), trans="T", check_finite=False
-            )  # L_new^{-1} L_old with L = R^T: maps old whitened coordinates to new ones
-            self._mu[:m] = Tm @ self._mu[:m]
-            S = Tm @ self._S[:m, :m] @ Tm.T
-            S, projected = project_whitened_covariance(S)  # 0 <= S <= I
+            self._mu[:m], self._S[:m, :m], projected = reanchor(
+                self._R[:m, :m], R_new, self._mu[:m], self._S[:m, :m]
+            )
             self._counts.python["covariance_projections"] += projected
-            self._S[:m, :m] = S
             self._R[:m, :m] = R_new
         self._refresh_scores()
         self._counts.python["q_resyncs"] += 1
@@ -557,17 +417,14 @@ class SparseOnlineGP:
             self._counts.python["refits"] += 1
             return
         R = self._factor_gram()  # [m, m] upper
-        Kbx = np.asarray(self.kernel.to_basis(Xa, self._bv[:m]), dtype=np.float64).T  # [m, N]
-        V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
-        B = self.noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
-        LB, jit, clips = robust_cholesky(B, "DTC system matrix", self.config)
+        mu, S, jit, clips = dtc_posterior(
+            self.kernel, Xa, ya, self._bv[:m], R, self.noise, self.config
+        )
         self._counts.python["jitter_events"] += jit
         self._counts.python["eig_clips"] += clips
-        Binv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
         self._R[:m, :m] = R
-        self._mu[:m] = Binv @ (V @ ya)
-        S = self.noise * Binv
-        self._S[:m, :m] = 0.5 * (S + S.T)
+        self._mu[:m] = mu
+        self._S[:m, :m] = S
         self._changes = 0
         self._counts.novclip_at_refit = self._counts.novelty_clipped_online  # raw features now
         self._refresh_scores(record_drift=False)  # a new posterior: nothing to compare with

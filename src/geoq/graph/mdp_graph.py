@@ -1,6 +1,6 @@
 """The online MDP-induced graph over the GP's basis vectors, with exact incremental APSP.
 
-Paper §4, JC12 eq. (2): when ``x_t`` enters the basis set it becomes a node, linked
+JC12 §4 and eq. 2: when ``x_t`` enters the basis set it becomes a node, linked
 to every node ``x_i`` with ``exp(-||x_i - x_t||^2) > eps`` by an edge of weight
 ``||x_i - x_t||^2``. When the GP deletes a basis vector its node goes too. The
 all-pairs shortest-path matrix ``P`` (``inf`` = unreachable) is kept equal to
@@ -69,6 +69,7 @@ from geoq.graph._apsp import (
     drop_index,
     insert_edge,
 )
+from geoq.graph._persist import graph_from_arrays, graph_to_arrays
 
 __all__ = ["EdgeWeight", "MDPGraph"]
 
@@ -412,94 +413,17 @@ class MDPGraph:
     # -- persistence --------------------------------------------------------------------
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Configuration and full state (nodes, weights, P, roll-out bookkeeping) as arrays."""
-        n = self._n
-        out: dict[str, np.ndarray] = {
-            "eps": np.asarray(self.eps),
-            "edge_weight": np.asarray(self.edge_weight),
-            "temporal_edges": np.asarray(self.temporal_edges),
-            "dim": np.asarray(-1 if self._dim is None else self._dim),
-            "nodes": self._X[:n].copy(),
-            "weights": self._W[:n, :n].copy(),
-            "shortest_paths": self._P[:n, :n].copy(),
-            "rollout_ids": self._ids[:n].copy(),
-            "current_rollout": np.asarray(self._rollout),
-        }
-        if self.period is not None:
-            out["period"] = self.period.copy()
-        return out
+        return graph_to_arrays(self)
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> MDPGraph:
         """Inverse of :meth:`to_arrays`; restores the state bit for bit (no replay)."""
-        edge_weight = str(arrays["edge_weight"])
-        if edge_weight not in ("squared", "euclidean"):
-            raise ValueError(f"saved graph has an unknown edge_weight {edge_weight!r}")
-        nodes = np.atleast_2d(np.asarray(arrays["nodes"], dtype=np.float64))
-        n = int(nodes.shape[0])
-        g = cls(
-            float(arrays["eps"]),
-            edge_weight=edge_weight,  # type: ignore[arg-type]
-            period=arrays.get("period"),
-            temporal_edges=bool(arrays["temporal_edges"]),
-            capacity=max(n, 16),
-        )
-        dim = int(arrays["dim"])
-        W = np.asarray(arrays["weights"], dtype=np.float64)
-        P = np.asarray(arrays["shortest_paths"], dtype=np.float64)
-        ids = np.asarray(arrays["rollout_ids"], dtype=np.int64)
-        _check_saved_state(nodes, W, P, ids, dim)
-        if dim >= 0:
-            g._dim = dim
-            g._X = np.zeros((g._cap, dim))
-        g._X[:n] = nodes
-        g._W[:n, :n] = W
-        g._P[:n, :n] = P
-        g._ids[:n] = ids
-        g._n = n
-        g._rollout = int(arrays["current_rollout"])
-        g._view_cache = None
-        return g
+        return graph_from_arrays(cls, arrays)
 
     def __repr__(self) -> str:
         return (
             f"MDPGraph(n_nodes={self._n}, eps={self.eps:g}, edge_weight={self.edge_weight!r}, "
             f"temporal_edges={self.temporal_edges}, period={self.period!r})"
-        )
-
-
-def _check_saved_state(
-    nodes: FloatArray, W: FloatArray, P: FloatArray, ids: IntArray, dim: int
-) -> None:
-    """Raise ``ValueError`` unless a saved graph state is self-consistent.
-
-    Cheap (O(n^2)) invariants of a genuine state: shapes agree, nodes finite,
-    weights symmetric and >= 0 (``inf`` = no edge, none on the diagonal), ``P``
-    symmetric, >= 0, zero on the diagonal, never longer than a direct edge.
-    """
-    n = nodes.shape[0]
-    if nodes.ndim != 2 or (dim >= 0 and n and nodes.shape[1] != dim):
-        raise ValueError(f"saved graph nodes have shape {nodes.shape}; expected (n, {dim})")
-    if W.shape != (n, n) or P.shape != (n, n) or ids.shape != (n,):
-        raise ValueError(
-            f"saved graph is inconsistent: {n} nodes but weights {W.shape}, "
-            f"shortest_paths {P.shape}, rollout_ids {ids.shape}"
-        )
-    problems = []
-    if not np.all(np.isfinite(nodes)):
-        problems.append("nodes are not all finite")
-    if np.any(np.isnan(W)) or np.any(W < 0) or not np.array_equal(W, W.T):
-        problems.append("weights are not symmetric, non-negative and NaN-free")
-    elif n and np.any(np.isfinite(np.diag(W))):
-        problems.append("weights contain self-loops")
-    if np.any(np.isnan(P)) or np.any(P < 0) or not np.array_equal(P, P.T):
-        problems.append("shortest_paths are not symmetric, non-negative and NaN-free")
-    elif np.any(np.diag(P) != 0.0):
-        problems.append("shortest_paths have a non-zero diagonal")
-    elif np.any(P > W * (1.0 + 1e-9)):
-        problems.append("shortest_paths are longer than direct edges")
-    if problems:
-        raise ValueError(
-            f"saved graph is corrupt or tampered with ({'; '.join(problems)}); save it again"
         )
 
 

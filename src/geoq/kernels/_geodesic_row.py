@@ -8,9 +8,9 @@ comparisons, which round identically here and in numpy). The two sums of JC12 eq
 :func:`row_sum` and :func:`row_dot`, and the numpy path calls them too
 (:func:`row_sums`, :func:`row_dots`): both paths give the same bits by
 construction, whatever order numpy sums in. ``exp`` and the JC12 eq. 5 product
-``W @ P`` (BLAS) stay numpy calls in the caller. Also the JC12 eq. 3 square
-``SP^2 / sigma_sp`` (:func:`squares_over`) and the node-identity test
-(:func:`rows_equal`).
+``W @ P`` (BLAS) stay numpy calls in the caller. JC12 eq. 3's ``r^2 = SP^2 / sigma_sp``
+is computed by :func:`geodesic_r2` alone, for both paths (the batch path through
+:func:`squares_over`). Also the node-identity test (:func:`rows_equal`).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from geoq._geometry import wrapped_r2
 from geoq._typing import FloatArray
 
 __all__ = [
+    "geodesic_r2",
     "interpolated_row_exponent",
     "interpolated_row_prepare",
     "interpolated_row_weights",
@@ -36,17 +37,24 @@ __all__ = [
 
 
 @numba.njit(cache=True, nogil=True)
-def squares_over(X: FloatArray, s: float) -> FloatArray:
-    """``X * X / s`` [N, M] elementwise, without floating-point warnings (overflow -> inf).
+def geodesic_r2(sp: float, sigma_sp: float) -> float:
+    """JC12 eq. 3: ``r^2 = SP^2 / sigma_sp``, so that ``k_sp = A exp(-r^2 / 2)``.
 
-    Bit-identical to numpy's ``X * X / s`` (two correctly rounded operations).
+    The one definition: :func:`squares_over` (the batch path) and the per-point rows
+    call it. Two correctly rounded operations, the same bits as numpy's
+    ``SP * SP / sigma_sp``; overflow gives ``inf`` without a warning.
     """
+    return sp * sp / sigma_sp
+
+
+@numba.njit(cache=True, nogil=True)
+def squares_over(X: FloatArray, s: float) -> FloatArray:
+    """:func:`geodesic_r2` of every entry of ``X`` [N, M] with ``sigma_sp = s`` -> [N, M]."""
     N, M = X.shape
     out = np.empty((N, M))
     for i in range(N):
         for j in range(M):
-            x = X[i, j]
-            out[i, j] = x * x / s
+            out[i, j] = geodesic_r2(X[i, j], s)
     return out
 
 
@@ -95,7 +103,7 @@ def nearest_row_exponent(
     r2: FloatArray,
     out: FloatArray,
 ) -> bool:
-    """Eq. 4 for one point: ``out[j] = -0.5 SP(x, x_j)^2 / sigma_sp``, ``j < n``.
+    """JC12 eq. 4 for one point: ``out[j] = -0.5 r^2(x, x_j)`` (:func:`geodesic_r2`), ``j < n``.
 
     ``SP = w(x - x_a) + P[a, j]`` with ``a`` the nearest node (lowest index among
     ties), ``w`` = ``r2`` (``squared``) or ``sqrt(r2)``. False (nothing written) if
@@ -107,8 +115,7 @@ def nearest_row_exponent(
     c = r2[a] if squared else np.sqrt(r2[a])
     row = P[a]
     for j in range(n):
-        sp = c + row[j]
-        out[j] = -0.5 * (sp * sp / sigma_sp)
+        out[j] = -0.5 * geodesic_r2(c + row[j], sigma_sp)
     return True
 
 
@@ -125,7 +132,7 @@ def interpolated_row_prepare(
     log_rel: FloatArray,
     arg: FloatArray,
 ) -> int:
-    """Eq. 5 for one point, first stage: ``r2`` [n] and the exponents of the weights.
+    """JC12 eq. 5 for one point, first stage: ``r2`` [n] and the exponents of the weights.
 
     Returns the nearest node ``a`` (lowest index among ties) if ``x`` is not on it,
     ``-2 - a`` if it is (``r2[a] == 0``), ``-1`` if ``BV[:n]`` is not the node set or
@@ -151,7 +158,7 @@ def interpolated_row_prepare(
 
 @numba.njit(cache=True, nogil=True)
 def row_sum(a: FloatArray, n: int) -> float:  # pragma: no cover - compiled
-    """``sum_{k<n} a[k]``, left to right: the one definition of an JC12 eq. 5 weight sum."""
+    """``sum_{k<n} a[k]``, left to right: the one definition of a JC12 eq. 5 weight sum."""
     acc = 0.0
     for k in range(n):
         acc += a[k]
@@ -196,7 +203,7 @@ def interpolated_row_weights(
     attach: bool,
     squared: bool,
 ) -> float:
-    """Eq. 5 weights ``W`` [1, n] (``exp(arg)`` on entry), in place: weights with
+    """JC12 eq. 5 weights ``W`` [1, n] (``exp(arg)`` on entry), in place: weights with
     ``log_rel < -negligible_log`` set to 0, then divided by their sum if ``normalize``.
 
     Returns the attach cost ``sum_k W[0, k] w(r2[k])`` (``w`` = ``r2`` or ``sqrt(r2)``)
@@ -231,7 +238,8 @@ def interpolated_row_exponent(
     sigma_sp: float,
     out: FloatArray,
 ) -> None:
-    """Eq. 5 for one point, last stage: ``out[j] = -0.5 (SP[0, j] + cost)^2 / sigma_sp``.
+    """JC12 eq. 5 for one point, last stage: ``out[j] = -0.5 r^2`` of ``SP[0, j] + cost``
+    (:func:`geodesic_r2`).
 
     ``SP = W @ P_finite`` [1, n]. With ``unreachable``, ``SP[0, j] = inf`` wherever a
     positive weight ``W[0, k]`` meets ``P[k, j] = inf`` (``0 * inf := 0``).
@@ -248,5 +256,4 @@ def interpolated_row_exponent(
                     if row[j] == np.inf:
                         out[j] = np.inf
     for j in range(n):
-        v = out[j] + cost
-        out[j] = -0.5 * (v * v / sigma_sp)
+        out[j] = -0.5 * geodesic_r2(out[j] + cost, sigma_sp)

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import MAX_MAGNITUDE, as_float_matrix, check_magnitude
+from geoq._validation import MAX_MAGNITUDE, as_inputs
 
 __all__ = [
     "Distance",
@@ -41,11 +41,6 @@ SEParameters = tuple[float | FloatArray, FloatArray | None, float]
 
 _KERNELS: dict[str, type[Kernel]] = {}
 _DISTANCES: dict[str, type[Distance]] = {}
-
-
-def _check_inputs(X: ArrayLike, name: str, dim: int | None) -> FloatArray:
-    """Finite ``[n, dim]`` inputs of magnitude <= ``MAX_MAGNITUDE`` (what the GPs accept)."""
-    return check_magnitude(as_float_matrix(X, name, dim), name, "rescale the inputs")
 
 
 class Distance(ABC):
@@ -156,13 +151,13 @@ class Kernel(ABC):
 
         ``k(X)`` is ``k(X, X)``.
         """
-        Xa = _check_inputs(X, "X", self.input_dim)
-        Ya = Xa if Y is None else _check_inputs(Y, "Y", Xa.shape[1])
+        Xa = as_inputs(X, "X", self.input_dim)
+        Ya = Xa if Y is None else as_inputs(Y, "Y", Xa.shape[1])
         return self._matrix(Xa, Ya)
 
     def diag(self, X: ArrayLike) -> FloatArray:
         """``k(x_i, x_i)`` for every row of ``X`` [n, d] -> [n]."""
-        return self._diag(_check_inputs(X, "X", self.input_dim))
+        return self._diag(as_inputs(X, "X", self.input_dim))
 
     @abstractmethod
     def _matrix(self, X: FloatArray, Y: FloatArray) -> FloatArray:

@@ -184,7 +184,7 @@ class GeodesicKernel(GraphKernel):
         return self.graph_distance.attach
 
     def shortest_path_to_nodes(self, X: ArrayLike) -> FloatArray:
-        """``SP(x*, x_j)`` [N, n_bv] by JC12 eq. 4 or eq. 5 (rows of ``P`` for points on nodes)."""
+        """``SP(x*, x_j)`` [N, n_bv] by JC12 eq. 4 or 5 (rows of ``P`` for points on nodes)."""
         Xa = as_float_matrix(X, "X", self.graph.dim)
         return self.graph_distance.shortest_path_to_nodes(Xa)
 

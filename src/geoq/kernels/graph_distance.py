@@ -27,7 +27,7 @@ graph's edge-weight function: ``||.||^2`` by default, ``||.||`` with
   (the limit of the normalised weights), i.e. ``SP(x*, x_j) -> P[a(x*), j]``.
   Unnormalised weights vanish far from the nodes, so there ``SP -> 0`` and
   ``k -> amplitude``: that is JC12 eq. 5 as published.
-* **Eq. 5 stalls the sparse GP** (measured, ``tests/integration/test_geodesic_gp.py``):
+* **JC12 eq. 5 stalls the sparse GP** (measured, ``tests/integration/test_geodesic_gp.py``):
   with one node, ``P = [[0]]`` so ``SP(x*, x_0) = 0`` and ``k(x*, x_0) = A`` for
   *every* ``x*``; the novelty of every later point is exactly 0 and the BV set
   never grows past its first point. ``attach=True`` (beyond the paper, off by
@@ -83,7 +83,7 @@ __all__ = ["NEGLIGIBLE_WEIGHT", "BasisGraphDistance", "GraphDistance", "Method"]
 
 Method = Literal["nearest", "interpolated"]
 
-#: Eq. 5 weights below this fraction of the largest weight of their row are
+#: JC12 eq. 5 weights below this fraction of the largest weight of their row are
 #: dropped (set to 0). They cannot change a finite sum at float64 precision, and
 #: with ``0 * inf := 0`` they no longer make ``SP`` infinite on their own.
 NEGLIGIBLE_WEIGHT = 1e-12
@@ -191,7 +191,8 @@ class GraphDistance(BasisGraphDistance):
     ) -> None:
         if method not in ("nearest", "interpolated"):
             raise ValueError(
-                f"method must be 'nearest' (JC12 eq. 4) or 'interpolated' (eq. 5), got {method!r}"
+                f"method must be 'nearest' (JC12 eq. 4) or 'interpolated' (JC12 eq. 5), "
+                f"got {method!r}"
             )
         super().__init__(graph)
         self.method: Method = method
@@ -227,7 +228,7 @@ class GraphDistance(BasisGraphDistance):
         return self._weights_and_costs(X)[0]
 
     def _weights_and_costs(self, X: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Eq. 5 weights [N, n] and, with ``attach``, ``sum_i weight_i w(x - x_i)`` [N]."""
+        """JC12 eq. 5 weights [N, n] and, with ``attach``, ``sum_i weight_i w(x - x_i)`` [N]."""
         r2 = self.graph.squared_distances_to_nodes(X)
         N, n = r2.shape
         if n == 0:
@@ -249,7 +250,7 @@ class GraphDistance(BasisGraphDistance):
         return W, cost
 
     def _weights_off_nodes(self, r2: FloatArray, argmin: int) -> FloatArray:
-        """Eq. 5 weights [N, n] from ``r2`` [N, n], ignoring points on nodes.
+        """JC12 eq. 5 weights [N, n] from ``r2`` [N, n], ignoring points on nodes.
 
         ``argmin >= 0``: ``N = 1`` and ``r2[0, argmin]`` is the row's minimum. Then so
         is ``z[0, argmin]`` (division by a positive constant is monotone after
@@ -276,7 +277,7 @@ class GraphDistance(BasisGraphDistance):
         return W
 
     def shortest_path_to_nodes(self, X: FloatArray) -> FloatArray:
-        """``SP(x*, x_j)`` [N, n] by JC12 eq. 4 or eq. 5 (``P`` rows for points on nodes)."""
+        """``SP(x*, x_j)`` [N, n] by JC12 eq. 4 or 5 (``P`` rows for points on nodes)."""
         if self.method == "nearest":
             return pendant_distances(self.graph, self._P, X)
         W, cost = self._weights_and_costs(X)
@@ -351,10 +352,9 @@ class GraphDistance(BasisGraphDistance):
 
     # -- Distance interface -----------------------------------------------------------------
     def _to_r2(self, SP: FloatArray) -> FloatArray:
-        if SP.ndim == 2 and SP.dtype == np.float64:
-            return squares_over(SP, self.sigma_sp)  # same bits, no errstate overhead
-        with np.errstate(over="ignore"):
-            return SP * SP / self.sigma_sp
+        """JC12 eq. 3's ``r^2`` [N, M] of shortest paths ``SP`` [N, M]
+        (:func:`~geoq.kernels._geodesic_row.geodesic_r2`)."""
+        return squares_over(np.asarray(SP, dtype=np.float64), self.sigma_sp)
 
     def squared(self, X: FloatArray, Y: FloatArray) -> FloatArray:
         return self._to_r2(self.shortest_path(X, Y))

@@ -65,8 +65,8 @@ class Euclidean(Distance):
             with np.errstate(over="ignore"):
                 diff = (X[:, None, :] - Y[None, :, :]) / self.scale  # [n, m, d]
                 return np.einsum("ijk,ijk->ij", diff, diff)
-        # Compiled: numpy's per-dimension passes cost ~0.7 ms for the [21, 200] of one agent
-        # step, mostly call overhead; tests/test_geometry.py pins the bits to numpy's.
+        # Compiled: numpy's per-dimension passes are mostly call overhead on the small
+        # matrices of an agent step; tests/test_geometry.py pins the bits to numpy's.
         scale = np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (X.shape[1],))
         return scaled_wrapped_squared_distances(
             np.ascontiguousarray(X),

@@ -1,6 +1,6 @@
 """GP action-value function learner: roll-outs -> Monte-Carlo targets -> sparse online GP.
 
-Data flow (paper §3): every step ``t`` of a roll-out gives an input
+Data flow (JC12 §3): every step ``t`` of a roll-out gives an input
 ``x_t = [s_t, a_t]`` (mapped through :class:`~geoq.learners.scaling.InputScaling`)
 and a target ``y_t = sum_{i=0}^{H-t} gamma^i r_{t+i}`` (the discounted return
 to the end of the episode, as in the paper). The pairs are streamed, in order,
@@ -69,8 +69,8 @@ class QGPConfig:
     """Everything that defines a GP Q-function learner (recorded with every result)."""
 
     kernel: KernelName = "nearest"
-    """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated`` (eq. 5) or
-    ``resistance`` (positive-definite kernel on the same graph)."""
+    """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated``
+    (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph)."""
     max_bv: int = 100
     """Basis-vector budget of the sparse online GP."""
     tol: float = 1e-6
@@ -90,7 +90,7 @@ class QGPConfig:
     normalize_weights: bool = False
     """Normalise the JC12 eq. 5 weights to sum to one (the paper's sum is unnormalised)."""
     attach_weights: bool = False
-    """Eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
+    """JC12 eq. 5 averages ``||x* - x_i||^2 + P_ij`` instead of ``P_ij`` (beyond the paper: the
     literal JC12 eq. 5 gives every point zero novelty against a one-node graph, so its BV set
     never grows past one point; see :mod:`geoq.kernels.graph_distance`)."""
     resistance_lengthscale: float = 1.0

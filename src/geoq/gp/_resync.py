@@ -1,0 +1,120 @@
+"""New factors of ``K_BV`` for :class:`~geoq.gp.SparseOnlineGP`: the resync and the refit.
+
+The GP's state is the upper Cholesky factor ``R`` [m, m] of ``K_BV`` and the
+whitened posterior ``u ~ N(mu, S)`` with ``f_BV = R^T u``. Three pure functions
+give it a new factor:
+
+* :func:`factor_gram`: ``R`` of the kernel's current ``K_BV`` under the jitter policy
+  of :mod:`geoq.gp.numerics`, reusing the factor of the last matrix factorised when
+  ``K_BV`` is the same bit for bit (:class:`FactorMemo`).
+* :func:`reanchor`: the whitened posterior moved onto a new factor so that the
+  posterior of ``f_BV`` (mean ``R^T mu``, covariance ``R^T S R``) is unchanged (the
+  resync of a basis-tracking kernel, whose ``K_BV`` changes as its graph grows).
+* :func:`dtc_posterior`: the projected-process (DTC) posterior on a fixed basis set
+  (the refit; TR eq. 3.17-3.19 applied to every point at once).
+
+Repairs are returned as counts; the GP adds them to its counters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from geoq._typing import FloatArray
+from geoq.gp.numerics import NumericsConfig, project_whitened_covariance, robust_cholesky
+from geoq.kernels.base import Kernel
+
+__all__ = ["FactorMemo", "dtc_posterior", "factor_gram", "reanchor"]
+
+
+@dataclass(frozen=True)
+class FactorMemo:
+    """The last ``K_BV`` a GP factorised and what :func:`robust_cholesky` made of it."""
+
+    K: FloatArray  # [m, m] the symmetrised K_BV
+    config: NumericsConfig
+    R: FloatArray  # [m, m] upper factor (read-only)
+    jitter_events: int
+    eig_clips: int
+
+    def same_input(self, K: FloatArray, config: NumericsConfig) -> bool:
+        """Whether ``K`` is :attr:`K` bit for bit (signed zeros included) under ``config``."""
+        return (
+            config == self.config
+            and K.shape == self.K.shape
+            and np.array_equal(K.view(np.uint64), self.K.view(np.uint64))
+        )
+
+
+def factor_gram(
+    kernel: Kernel, basis: FloatArray, config: NumericsConfig, memo: FactorMemo | None
+) -> tuple[FloatArray, int, int, FactorMemo | None]:
+    """Upper Cholesky factor ``R`` [m, m] of ``K_BV = kernel.basis_gram(basis)`` [m, m].
+
+    Returns ``(R, jitter_events, eig_clips, memo)``; ``R`` is read-only (the caller
+    copies it into its state). The factor is a function of ``K_BV`` and ``config``
+    alone, so the one of the last ``K_BV`` factorised is kept in the returned memo:
+    when a resync finds the same matrix bit for bit (the GP added a point and deleted
+    it again, and the kernel's ``K_BV`` came back with the graph; with an indefinite
+    ``K_BV`` each factorisation costs an eigendecomposition), the stored factor and
+    its repair counts are reused.
+    """
+    m = basis.shape[0]
+    K = np.asarray(kernel.basis_gram(basis), dtype=np.float64)  # [m, m]
+    if K.shape != (m, m) or not np.all(np.isfinite(K)):
+        raise ValueError(f"kernel.basis_gram returned shape {K.shape} or non-finite values")
+    K = 0.5 * (K + K.T)
+    if memo is not None and memo.same_input(K, config):
+        return memo.R, memo.jitter_events, memo.eig_clips, memo
+    L, jit, clips = robust_cholesky(K, "K_BV", config)
+    R = np.ascontiguousarray(L.T)
+    R.flags.writeable = False
+    return R, jit, clips, FactorMemo(K, config, R, jit, clips)
+
+
+def reanchor(
+    R_old: FloatArray, R_new: FloatArray, mu: FloatArray, S: FloatArray
+) -> tuple[FloatArray, FloatArray, int]:
+    """The whitened posterior ``(mu [m], S [m, m])`` on factor ``R_old`` moved onto ``R_new``.
+
+    ``T = L_new^{-1} L_old`` (``L = R^T``) maps old whitened coordinates to new ones:
+    ``mu' = T mu``, ``S' = T S T^T``, then projected onto ``0 <= S' <= I``. Returns
+    ``(mu', S', projected)``, ``projected`` the number of eigenvalues projected.
+    """
+    Tm = scipy.linalg.solve_triangular(
+        R_new, np.ascontiguousarray(R_old.T), trans="T", check_finite=False
+    )  # [m, m]
+    S_new, projected = project_whitened_covariance(Tm @ S @ Tm.T)
+    return Tm @ mu, S_new, projected
+
+
+def dtc_posterior(
+    kernel: Kernel,
+    X: FloatArray,
+    y: FloatArray,
+    basis: FloatArray,
+    R: FloatArray,
+    noise: float,
+    config: NumericsConfig,
+) -> tuple[FloatArray, FloatArray, int, int]:
+    """Projected-process (DTC) whitened posterior ``(mu [m], S [m, m])`` on a fixed basis.
+
+    With ``K_BV = L L^T`` (``L = R^T``), ``V = L^{-1} K_BX`` [m, N] and
+    ``B = sigma0^2 I + V V^T``::
+
+        mu = B^{-1} V y,    S = sigma0^2 B^{-1}
+
+    Returns ``(mu, S, jitter_events, eig_clips)`` (the repairs of factorising ``B``).
+    """
+    m = R.shape[0]
+    Kbx = np.asarray(kernel.to_basis(X, basis), dtype=np.float64).T  # [m, N]
+    V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
+    B = noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
+    LB, jit, clips = robust_cholesky(B, "DTC system matrix", config)
+    Binv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
+    mu = Binv @ (V @ y)
+    S = noise * Binv
+    return mu, 0.5 * (S + S.T), jit, clips

@@ -1,7 +1,8 @@
 """Control experiments: train an agent, evaluate it, benchmark kernels x seeds (data only).
 
-* :func:`evaluate_agent`: deterministic episodes from the env's default reset,
-  run in lockstep so that each step is one batched :meth:`GPQAgent.predict`.
+* :func:`evaluate_agent` (from :mod:`geoq.experiments.control_eval`, shared with the
+  baselines): deterministic episodes from the env's default reset, run in
+  lockstep so that each step is one batched :meth:`GPQAgent.predict`.
 * :func:`train` (``geoq train``): learn, then write ``learning_curve.csv``,
   ``learning_curve.png``, ``agent.npz`` and ``config.json`` atomically.
 * :func:`control_cell` / :func:`run_control_benchmark` (``geoq bench-control``):
@@ -14,19 +15,29 @@
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
-import gymnasium
 import numpy as np
+from scipy import stats
 
+from geoq import __version__
 from geoq._io import atomic_write_json, atomic_write_text
 from geoq.agents import GPQAgent
 from geoq.envs import PENDULUM_SWING_UP_ID
+from geoq.experiments.control_eval import (
+    ControlCell,
+    Evaluation,
+    evaluate_agent,
+    evaluation_success,
+    learn_with_checkpoints,
+)
+from geoq.experiments.plotting import plot_learning_curve
+from geoq.experiments.reproduce import save_figure, write_csv
+from geoq.experiments.sac_baseline import BASELINES, sac_cell
 from geoq.experiments.stats import mean_interval
+from geoq.experiments.sweep import run_sweep
 from geoq.policies import default_policy
 from geoq.tasks import KNOWN_TASKS
 
@@ -45,93 +56,6 @@ __all__ = [
 
 #: Columns of ``learning_curve.csv``.
 CURVE_COLUMNS = ("timesteps", "episode", "return", "success")
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """Deterministic evaluation episodes of an agent.
-
-    Attributes
-    ----------
-    returns : undiscounted return of each episode ``[n]``.
-    successes : ``info["is_success"]`` at each episode's end (1/0), NaN where unreported.
-    """
-
-    returns: np.ndarray
-    successes: np.ndarray
-
-    @property
-    def success_rate(self) -> float:
-        """Fraction of successful episodes (NaN if the env reports no success)."""
-        s = self.successes[np.isfinite(self.successes)]
-        return float(np.mean(s)) if s.size else float("nan")
-
-    def summary(self) -> str:
-        ci = mean_interval(self.returns)
-        rate = self.success_rate
-        rate_text = "n/a" if math.isnan(rate) else f"{rate:.2f}"
-        return (
-            f"mean return {ci.mean:.2f} (95% interval [{ci.low:.2f}, {ci.high:.2f}], "
-            f"{len(self.returns)} episodes); success rate {rate_text}"
-        )
-
-
-class Actor(Protocol):
-    """Anything that acts like an agent: :class:`GPQAgent`, a baseline, a fixed controller."""
-
-    env_id: str
-
-    def predict(self, observation: Any, deterministic: bool = True) -> tuple[Any, None]: ...
-
-
-def evaluate_agent(
-    agent: Actor, env_id: str | None = None, n_episodes: int = 20, seed: int = 0
-) -> Evaluation:
-    """Run ``n_episodes`` deterministic (greedy) episodes from the env's default reset.
-
-    Episode ``i`` starts from ``reset(seed=SeedSequence(seed).spawn(n)[i])``; all
-    episodes advance in lockstep, one batched ``predict`` per step.
-    """
-    if n_episodes < 1:
-        raise ValueError(f"n_episodes must be >= 1, got {n_episodes}")
-    env_id = env_id or agent.env_id
-    if not env_id:
-        raise ValueError("the agent has no registered env id; pass env_id=")
-    envs = [gymnasium.make(env_id) for _ in range(n_episodes)]
-    seeds = np.random.SeedSequence(seed).spawn(n_episodes)
-    obs = np.stack(
-        [e.reset(seed=int(s.generate_state(1)[0]))[0] for e, s in zip(envs, seeds, strict=True)]
-    )
-    returns = np.zeros(n_episodes)
-    successes = np.full(n_episodes, np.nan)
-    active = np.ones(n_episodes, dtype=bool)
-    while np.any(active):
-        idx = np.flatnonzero(active)
-        actions, _ = agent.predict(obs[idx].astype(np.float64), deterministic=True)
-        for j, i in enumerate(idx):
-            o, r, terminated, truncated, info = envs[i].step(
-                actions[j].astype(envs[i].action_space.dtype)
-            )
-            obs[i] = o
-            returns[i] += float(r)
-            if terminated or truncated:
-                active[i] = False
-                if "is_success" in info:
-                    successes[i] = float(bool(info["is_success"]))
-    for e in envs:
-        e.close()
-    return Evaluation(returns=returns, successes=successes)
-
-
-def evaluation_success(ev: Evaluation, env_id: str) -> float:
-    """The success of one evaluation: its episodes' success rate if the env reports
-    ``info["is_success"]``, else (a task with a ``success_return``, e.g.
-    MountainCarContinuous: 90) 1.0 when the mean return reaches the threshold, else 0.0."""
-    rate = ev.success_rate
-    known = KNOWN_TASKS.get(env_id)
-    if math.isnan(rate) and known is not None and known.success_return is not None:
-        return float(np.mean(ev.returns) >= known.success_return)
-    return rate
 
 
 class HandMadeController:
@@ -168,9 +92,6 @@ def train(
     training episode), ``learning_curve.png``, ``agent.npz`` and
     ``config.json``, each atomically. Returns the agent.
     """
-    from geoq import __version__
-    from geoq.experiments.plotting import plot_learning_curve
-    from geoq.experiments.reproduce import save_figure, write_csv
 
     out = Path(out)
     agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
@@ -194,60 +115,6 @@ def train(
 
 
 # --------------------------------------------------------------------------- benchmark
-@dataclass(frozen=True)
-class ControlCell:
-    """One benchmark run: an agent's settings and a seed, learning for ``timesteps`` steps."""
-
-    env_id: str
-    kernel: str
-    seed: int
-    timesteps: int
-    eval_every: int
-    eval_episodes: int
-    config: Mapping[str, Any] = field(default_factory=dict)
-    """Other :class:`~geoq.agents.GPQConfig` fields (e.g. ``exploration``)."""
-
-    @property
-    def label(self) -> str:
-        extra = ",".join(f"{k}={v}" for k, v in sorted(self.config.items()))
-        return self.kernel + (f"[{extra}]" if extra else "")
-
-
-def learn_with_checkpoints(
-    cell: ControlCell, learn: Callable[[int], object], actor: Actor
-) -> dict[str, Any]:
-    """``learn(n)`` in chunks of ``cell.eval_every`` steps, evaluating ``actor`` after each.
-
-    Returns the part of a benchmark row every learner shares: label, kernel,
-    seed, checkpoints, mean evaluation return and success rate at each, the
-    wall time spent in ``learn`` and its cost per step.
-    """
-    checkpoints: list[int] = []
-    eval_returns: list[float] = []
-    eval_success: list[float] = []
-    learn_seconds, done = 0.0, 0
-    while done < cell.timesteps:
-        step = min(cell.eval_every, cell.timesteps - done)
-        t0 = time.perf_counter()
-        learn(step)
-        learn_seconds += time.perf_counter() - t0
-        done += step
-        ev = evaluate_agent(actor, cell.env_id, cell.eval_episodes, seed=10_000 + cell.seed)
-        checkpoints.append(done)
-        eval_returns.append(float(np.mean(ev.returns)))
-        eval_success.append(evaluation_success(ev, cell.env_id))
-    return {
-        "label": cell.label,
-        "kernel": cell.kernel,
-        "seed": cell.seed,
-        "checkpoints": checkpoints,
-        "eval_return": eval_returns,
-        "eval_success": eval_success,
-        "learn_seconds": learn_seconds,
-        "ms_per_step": 1e3 * learn_seconds / max(done, 1),
-    }
-
-
 def control_cell(cell: ControlCell) -> dict[str, Any]:
     """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
 
@@ -257,7 +124,6 @@ def control_cell(cell: ControlCell) -> dict[str, Any]:
     Returns a row with the checkpoints, the evaluation's mean return and
     success rate at each, the training curve and the wall time of learning.
     """
-    from geoq.experiments.sac_baseline import BASELINES, sac_cell
 
     if cell.kernel in BASELINES:
         return sac_cell(cell)
@@ -280,7 +146,6 @@ def steps_to_success(row: Mapping[str, Any], threshold: float = 0.9) -> float:
 
 def _median_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
     """Median with a distribution-free (binomial order-statistic) interval."""
-    from scipy import stats
 
     v = np.sort(np.asarray(values, dtype=np.float64))
     n = v.size
@@ -408,9 +273,6 @@ def run_control_benchmark(
     ``baselines`` (e.g. ``["sac"]``) adds cells of those baselines with default
     settings, same seeds, budgets and evaluation.
     """
-    from geoq.experiments.plotting import plot_learning_curve
-    from geoq.experiments.reproduce import save_figure, write_csv
-    from geoq.experiments.sweep import run_sweep
 
     out = Path(out)
     cells = [

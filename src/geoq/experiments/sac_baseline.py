@@ -5,18 +5,17 @@
 SAC runs with its default settings (learning rate 3e-4 in SB3 >= 2, buffer
 1e6, batch 256, ``learning_starts = 100``, one gradient step per env step) on
 one torch thread, is evaluated exactly as the GP agent is
-(:func:`geoq.experiments.control.evaluate_agent`), at the same checkpoints.
+(:func:`geoq.experiments.control_eval.evaluate_agent`), at the same checkpoints.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import gymnasium
 import numpy as np
 
-if TYPE_CHECKING:
-    from geoq.experiments.control import ControlCell
+from geoq.experiments.control_eval import ControlCell, learn_with_checkpoints
 
 __all__ = ["BASELINES", "sac_cell"]
 
@@ -45,8 +44,6 @@ def sac_cell(cell: ControlCell) -> dict[str, Any]:
             "the SAC baseline needs stable-baselines3: pip install 'geoq[baselines]' "
             "(it pulls torch, several GB)"
         ) from exc
-    from geoq.experiments.control import learn_with_checkpoints
-
     torch.set_num_threads(1)
     env = gymnasium.make(cell.env_id)
     model = SAC("MlpPolicy", env, seed=cell.seed, verbose=0, device="cpu", **dict(cell.config))

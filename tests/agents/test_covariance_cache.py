@@ -1,4 +1,4 @@
-"""NextStateCovariances: the reused covariances equal a fresh computation to the bit."""
+"""NextStateCovariances: the kept covariances equal a fresh computation to the bit."""
 
 from __future__ import annotations
 
@@ -29,24 +29,51 @@ def test_reused_covariances_equal_a_fresh_computation_bit_for_bit(period) -> Non
     inputs = _candidate_inputs(candidates)
     states = rng.uniform(-1, 1, size=(400, 2))
     basis = rng.uniform(-1, 1, size=(30, 3))
-    cache = NextStateCovariances()
+    cache = NextStateCovariances(min_slots=20)
     window = 150
-    for total in (40, 90, 160, 160, 230, 400):
+    for total in (40, 90, 160, 160, 230, 300, 320, 340, 360, 380, 400):
         first = max(0, total - window)
         keep = rng.permutation(len(basis))[: len(basis) - 4]  # delete 4, reorder the rest
         basis = np.vstack([basis[keep], rng.uniform(-1, 1, size=(6, 3))])  # add 6
-        got = cache.get(kernel, inputs, states[first:total], first, basis, len(candidates))
-        np.testing.assert_array_equal(got, kernel.to_basis(inputs(states[first:total]), basis))
+        got, slots = cache.get(kernel, inputs, states[first:total], first, basis, len(candidates))
+        assert got.shape[0] == (total - first) * len(candidates)
+        assert len(set(slots.tolist())) == len(basis) and np.all(np.isfinite(got))
+        np.testing.assert_array_equal(
+            got[:, slots], kernel.to_basis(inputs(states[first:total]), basis)
+        )
     cache.clear()
-    got = cache.get(kernel, inputs, states[:10], 0, basis, len(candidates))
-    np.testing.assert_array_equal(got, kernel.to_basis(inputs(states[:10]), basis))
+    got, slots = cache.get(kernel, inputs, states[:10], 0, basis, len(candidates))
+    np.testing.assert_array_equal(got[:, slots], kernel.to_basis(inputs(states[:10]), basis))
+    # a jump backwards starts afresh
+    got, slots = cache.get(kernel, inputs, states[:5], 0, basis, len(candidates))
+    np.testing.assert_array_equal(got[:, slots], kernel.to_basis(inputs(states[:5]), basis))
+
+
+def test_a_kept_basis_vector_keeps_its_slot_and_freed_slots_are_reused() -> None:
+    kernel = SquaredExponential(lengthscale=0.5)
+    inputs = _candidate_inputs(np.zeros((1, 1)))
+    states = np.linspace(0, 1, 8)[:, None]
+    basis = np.arange(10.0).reshape(5, 2)
+    cache = NextStateCovariances()
+    _, slots = cache.get(kernel, inputs, states, 0, basis, 1)
+    assert slots.tolist() == [0, 1, 2, 3, 4]
+    # delete rows 1 and 3, reorder, add two new ones: they take the freed slots 1 and 3
+    basis2 = np.vstack([basis[[4, 0, 2]], [[50.0, 51.0], [60.0, 61.0]]])
+    _, slots2 = cache.get(kernel, inputs, states, 0, basis2, 1)
+    assert slots2.tolist() == [4, 0, 2, 1, 3]
 
 
 def test_agents_learn_the_same_with_and_without_reuse(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A sliding window (60 transitions), uniform and graph replay: same curves, same bits."""
+    """A sliding window (60 transitions), uniform and graph replay: same curves, same bits,
+    when every phase's matrix is computed afresh (in the same slot columns, zeros in
+    the free ones: the zero-weight columns' stale values do not count)."""
+    kept_get = NextStateCovariances.get
 
     def fresh(self, kernel, inputs, next_states, first, basis, n_candidates):  # type: ignore[no-untyped-def]
-        return kernel.to_basis(inputs(next_states), basis)
+        kept, slots = kept_get(self, kernel, inputs, next_states, first, basis, n_candidates)
+        out = np.zeros_like(kept)
+        out[:, slots] = kernel.to_basis(inputs(next_states), basis)
+        return out, slots
 
     def run(replay: str) -> GPQAgent:
         agent = GPQAgent(PointToGoal(), seed=1, gamma=0.9, max_bv=40, window=60, replay=replay)

@@ -16,6 +16,7 @@ from tests.agents._tasks import PointToGoal, steps_to_goal
 import geoq  # noqa: F401  (registers the envs)
 from geoq._io import ArchiveError
 from geoq.agents import GPQAgent, GPQConfig
+from geoq.agents.config import default_max_bv
 
 KERNELS = ("euclidean", "nearest", "interpolated", "resistance")
 
@@ -87,6 +88,26 @@ def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
         GPQAgent.load(tampered)
     with zipfile.ZipFile(path) as zf:
         assert all(not name.endswith(".pkl") for name in zf.namelist())
+    # Tamper: two basis vectors in one covariance column.
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays["covariances/slots"] = np.zeros_like(arrays["covariances/slots"])
+    np.savez(tampered, **arrays)
+    with pytest.raises(ArchiveError, match="inconsistent"):
+        GPQAgent.load(tampered)
+
+
+def test_files_without_covariance_slots_still_load(tmp_path: Path) -> None:
+    """Agents saved before the fitted-Q column order was stored load and act the same."""
+    agent = _agent(max_bv=20).learn(60)
+    path, old = tmp_path / "agent.npz", tmp_path / "old.npz"
+    agent.save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        np.savez(old, **{k: npz[k] for k in npz.files if not k.startswith("covariances/")})
+    loaded = GPQAgent.load(old, env=PointToGoal())
+    obs = np.linspace(-1, 1, 7)[:, None]
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+    assert len(loaded.learn(30).episodes) >= len(agent.episodes)
 
 
 def test_predict_validates_observations_and_stays_in_the_box() -> None:
@@ -129,6 +150,21 @@ def test_unsupported_envs_and_arguments_raise() -> None:
         GPQAgent(PointToGoal(), lengthscale=(0.1, 0.2, 0.3))
     with pytest.raises(ValueError, match="unknown GPQConfig"):
         GPQConfig.from_dict({"kernel": "euclidean", "bogus": 1})
+
+
+def test_default_budget_doubles_past_three_inputs() -> None:
+    assert [default_max_bv(d) for d in (1, 2, 3, 4, 5, 9)] == [400, 400, 400, 800, 800, 800]
+    assert GPQAgent(PointToGoal()).config.max_bv == 400  # 1 + 1 inputs
+    assert GPQAgent("geoq/PendulumSwingUp-v0").config.max_bv == 400  # 2 + 1
+    assert GPQAgent("Pendulum-v1").config.max_bv == 800  # 3 + 1
+    assert GPQAgent("geoq/TwoRooms-v0").config.max_bv == 800  # 2 + 2
+    assert GPQAgent("Pendulum-v1", max_bv=50).config.max_bv == 50  # explicit wins
+    assert GPQConfig().max_bv is None and GPQConfig.from_dict({"max_bv": None}).max_bv is None
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match="max_bv"):
+            GPQConfig(max_bv=bad)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="input_dim"):
+        default_max_bv(0)
 
 
 def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() -> None:

@@ -2,12 +2,25 @@
 between fitted-Q phases.
 
 A fitted-Q phase needs ``k([s'_i, a_k], BV_j)`` for every stored transition ``i``,
-candidate ``k`` and basis vector ``j``: ``[N K, m]``, the largest cost of a phase once
-thousands of transitions are stored (1.1 of 1.5 s at 10,000 transitions and 200 BVs).
-From one phase to the next most transitions and most basis vectors are the same,
-and an entry of a kernel that does not follow its basis (the squared exponential)
-depends only on its two inputs, so those entries are copied instead of recomputed:
-the matrix is the same to the bit as computing it afresh.
+candidate ``k`` and basis vector ``j``: ``[N K, m]``, the largest matrix of a phase once
+thousands of transitions are stored (336 MB at 10,000 transitions, 21 candidates and
+200 BVs). From one phase to the next most transitions and most basis vectors are the
+same, and an entry of a kernel that does not follow its basis (the squared
+exponential) depends only on its two inputs. So the matrix lives in one place across
+phases and only what is new is computed: rows for new transitions, columns for new
+basis vectors. Nothing is copied per phase:
+
+* **columns are slots.** A basis vector keeps its column (its *slot*) for as long as
+  it is in the basis; a deleted one frees its slot for the next new one. The caller
+  gets the slot of each basis vector and gives every other column zero weight.
+* **rows are a sliding block.** Transitions ``first .. first + N - 1`` are rows
+  ``[(first - row_first) K, (first + N - row_first) K)`` of a buffer that grows by
+  half when full and moves its live rows to the top (one memmove) when the window has
+  slid past its start.
+
+Every entry is ``kernel.to_basis`` of its two inputs, computed once (the oracle test
+compares the slot columns with a fresh ``to_basis`` bit for bit). Every entry of the
+buffer is finite: it starts at zero and is only overwritten by kernel values.
 """
 
 from __future__ import annotations
@@ -22,41 +35,66 @@ from geoq.kernels.base import Kernel
 
 __all__ = ["NextStateCovariances"]
 
+#: The row buffer grows to this multiple of the rows it must hold.
+GROWTH = 1.5
+
 
 @numba.njit(cache=True, nogil=True)
-def _copy_columns(
-    src: FloatArray,
-    src_row0: int,
-    src_cols: IntArray,
-    dst: FloatArray,
-    dst_row0: int,
-    dst_cols: IntArray,
-    n_rows: int,
+def _scatter_columns(
+    src: FloatArray, dst: FloatArray, dst_row0: int, dst_cols: IntArray
 ) -> None:  # pragma: no cover - compiled
-    """``dst[dst_row0 + i, dst_cols] = src[src_row0 + i, src_cols]`` for ``i < n_rows``,
-    row by row (numpy's fancy column indexing of a [200k, 200] matrix took 1 s)."""
-    for i in range(n_rows):
-        for j in range(src_cols.shape[0]):
-            dst[dst_row0 + i, dst_cols[j]] = src[src_row0 + i, src_cols[j]]
+    """``dst[dst_row0 + i, dst_cols[j]] = src[i, j]``, row by row (numpy's fancy column
+    assignment into a [200k, 200] matrix took 1 s)."""
+    for i in range(src.shape[0]):
+        for j in range(dst_cols.shape[0]):
+            dst[dst_row0 + i, dst_cols[j]] = src[i, j]
 
 
 class NextStateCovariances:
-    """``k(candidate inputs of S2, basis)`` ``[N K, m]``, reusing the previous phase's entries.
+    """``k(candidate inputs of S2, basis)`` in slot columns, kept and extended across phases.
 
     Transitions are identified by their absolute index in the agent's buffer (which
     only grows: the fitted-Q window slides forward), basis vectors by their bytes.
-    Memory: the previous phase's matrix is held between phases.
+    Memory: one ``[rows, slots]`` buffer, at most ``GROWTH`` x the rows of a window;
+    ``min_slots`` columns from the start (the GP's budget: no regrowth as it fills).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, min_slots: int = 0) -> None:
+        self.min_slots = int(min_slots)
         self.clear()
 
     def clear(self) -> None:
         """Forget everything (the inputs' scaling or the kernel changed)."""
-        self._first = 0
-        self._n = 0
-        self._columns: dict[bytes, int] = {}
-        self._K: FloatArray | None = None
+        self._K = np.zeros((0, 0))
+        self._row_first = 0  # buffer index of the transition in row block 0
+        self._n = 0  # transitions held, from _row_first
+        self._slots: dict[bytes, int] = {}
+
+    def slot_arrays(self) -> dict[str, FloatArray | IntArray]:
+        """The slot of each basis vector of the last phase (``basis`` ``[n, d]``,
+        ``slots`` ``[n]``): a saved agent reloads with the same column order, hence the
+        same bits of every later phase."""
+        keys = list(self._slots)
+        width = len(keys[0]) // 8 if keys else 0
+        basis = np.frombuffer(b"".join(keys), dtype=np.float64).reshape(len(keys), width)
+        return {"basis": basis.copy(), "slots": np.array(list(self._slots.values()), np.int64)}
+
+    def restore_slots(self, basis: FloatArray, slots: IntArray) -> None:
+        """Start from the slots of :meth:`slot_arrays` (the entries are computed afresh)."""
+        self.clear()
+        rows = np.ascontiguousarray(basis, dtype=np.float64)
+        if (
+            rows.ndim != 2
+            or slots.shape != (rows.shape[0],)
+            or len(set(slots.tolist())) < len(slots)
+        ):
+            raise ValueError("covariance slots: one distinct slot per basis vector expected")
+        self._slots = {b.tobytes(): int(j) for b, j in zip(rows, slots, strict=True)}
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held between phases."""
+        return int(self._K.nbytes)
 
     def get(
         self,
@@ -66,45 +104,64 @@ class NextStateCovariances:
         first: int,
         basis: FloatArray,
         n_candidates: int,
-    ) -> FloatArray:
-        """The covariances ``[N K, m]`` of ``candidate_inputs(next_states)`` with ``basis``.
+    ) -> tuple[FloatArray, IntArray]:
+        """The covariances of ``candidate_inputs(next_states)`` with ``basis``, and the slots.
 
         ``next_states`` ``[N, d_s]`` are the transitions ``first, ..., first + N - 1`` of
         the buffer; ``candidate_inputs`` maps ``[n, d_s]`` states to their ``[n K, d]``
         inputs (state-major). ``kernel`` must not follow its basis (``tracks_basis``).
+
+        Returns ``K`` ``[N K, S]`` (a view, valid until the next call) and ``slots``
+        ``[m]``: ``K[:, slots[j]] = k(inputs, basis[j])``; the other ``S - m`` columns
+        hold finite values of no meaning.
         """
         if kernel.tracks_basis:
             raise ValueError("a kernel that follows its basis cannot reuse covariances")
-        N, K, m = next_states.shape[0], int(n_candidates), basis.shape[0]
-        out = np.empty((N * K, m))
-        lo, hi = max(first, self._first), min(first + N, self._first + self._n)
-        old = self._K
-        if old is None or hi <= lo:
-            lo = hi = first  # nothing to reuse
+        N, K = next_states.shape[0], int(n_candidates)
+        if first < self._row_first or first > self._row_first + self._n:
+            self.clear()  # not a forward slide of what is held: start afresh
+            self._row_first = first
+        slots, new = self._assign_slots(basis)
+        kept = self._row_first + self._n - first  # transitions held and still wanted
+        kept = min(kept, N)
+        self._make_room(first, N, K, max(self.min_slots, int(slots.max(initial=-1)) + 1))
+        r0 = (first - self._row_first) * K
+        if kept and new.size:  # new basis vectors: their columns for the rows held
+            block = kernel.to_basis(candidate_inputs(next_states[:kept]), basis[new])
+            _scatter_columns(block, self._K, r0, slots[new])
+        if kept < N:  # new transitions: every column
+            block = kernel.to_basis(candidate_inputs(next_states[kept:]), basis)
+            _scatter_columns(block, self._K, r0 + kept * K, slots)
+        self._n = first + N - self._row_first
+        return self._K[r0 : r0 + N * K], slots
+
+    def _assign_slots(self, basis: FloatArray) -> tuple[IntArray, IntArray]:
+        """Slots of ``basis`` ``[m]`` (kept ones unchanged, freed ones reused lowest first)
+        and the indices of the basis vectors that are new."""
+        keys = [b.tobytes() for b in basis]
+        old = self._slots
+        slots = np.array([old.get(k, -1) for k in keys], dtype=np.intp)
+        new = np.flatnonzero(slots < 0)
+        used = set(slots[slots >= 0].tolist())
+        free = (s for s in range(basis.shape[0] + len(old)) if s not in used)
+        for j in new:
+            slots[j] = next(free)
+        self._slots = dict(zip(keys, slots.tolist(), strict=True))
+        return slots, new
+
+    def _make_room(self, first: int, N: int, K: int, n_slots: int) -> None:
+        """Make the buffer hold rows for transitions ``first .. first + N - 1`` and
+        ``n_slots`` columns, keeping the rows of the transitions still wanted."""
+        rows, cols = self._K.shape
+        kept = max(0, min(self._row_first + self._n, first + N) - first)
+        start = (first - self._row_first) * K
+        need_rows = N * K
+        if cols >= n_slots and start + need_rows <= rows:
+            return
+        if cols >= n_slots and need_rows <= rows:  # slide: live rows to the top
+            self._K[: kept * K] = self._K[start : start + kept * K]
         else:
-            cols = np.array([self._columns.get(b.tobytes(), -1) for b in basis], dtype=np.intp)
-            have = cols >= 0
-            if np.any(have):
-                _copy_columns(
-                    old, (lo - self._first) * K, cols[have], out, (lo - first) * K,
-                    np.flatnonzero(have), (hi - lo) * K,
-                )  # fmt: skip
-            if not np.all(have):
-                new = kernel.to_basis(
-                    candidate_inputs(next_states[lo - first : hi - first]), basis[~have]
-                )
-                _copy_columns(
-                    new, 0, np.arange(new.shape[1]), out, (lo - first) * K,
-                    np.flatnonzero(~have), (hi - lo) * K,
-                )  # fmt: skip
-        if lo > first:
-            out[: (lo - first) * K] = kernel.to_basis(
-                candidate_inputs(next_states[: lo - first]), basis
-            )
-        if hi < first + N:
-            out[(hi - first) * K :] = kernel.to_basis(
-                candidate_inputs(next_states[hi - first :]), basis
-            )
-        self._first, self._n, self._K = first, N, out
-        self._columns = {b.tobytes(): j for j, b in enumerate(basis)}
-        return out
+            grown = np.zeros((max(need_rows, int(GROWTH * need_rows)), max(cols, n_slots)))
+            grown[: kept * K, :cols] = self._K[start : start + kept * K]
+            self._K = grown
+        self._row_first, self._n = first, kept

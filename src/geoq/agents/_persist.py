@@ -1,7 +1,8 @@
 """The ``GPQAgent`` file format: a versioned, pickle-free ``.npz`` (see ``geoq._io``).
 
 Arrays: ``gp/*`` (the sparse GP), ``buffer/*`` (the transitions and their
-targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``; ``meta``
+targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``,
+``covariances/*`` (the fitted-Q phases' column order, optional); ``meta``
 is JSON (config, scaling, env id, seed, generator state, standardisation,
 counters). Optional meta keys added after version 1 default to a fresh agent's
 values, so older files load.
@@ -64,6 +65,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
     arrays["candidates"] = agent.candidates
     arrays["action_box"] = np.vstack([agent.action_low, agent.action_high])
     arrays["obs_dim"] = np.int64(agent.obs_dim)
+    arrays.update({f"covariances/{k}": v for k, v in agent._next_covariances.slot_arrays().items()})
     save_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION, arrays)
 
 
@@ -128,7 +130,16 @@ def load_agent(
     agent.fitted_lengthscale = None if fitted is None else tuple(float(v) for v in fitted)
     agent.evidence_fits = list(meta.get("evidence_fits", []))
     agent.evidence_due = int(meta.get("evidence_due", 0))
-    agent._next_covariances = NextStateCovariances()
+    agent._next_covariances = NextStateCovariances(agent.max_bv)
+    if "covariances/slots" in a:  # files from before the slots: a fresh column order
+        try:
+            agent._next_covariances.restore_slots(
+                np.asarray(a["covariances/basis"]), np.asarray(a["covariances/slots"])
+            )
+        except (KeyError, ValueError) as exc:
+            raise ArchiveError(
+                f"{path}: inconsistent GPQAgent archive ({exc}); save it again"
+            ) from exc
     agent.episodes = [EpisodeRecord(int(t), int(e), float(r), float(s)) for t, e, r, s in episodes]
     agent.env = None
     if env is None and agent.env_id and agent.env_id in gymnasium.registry:

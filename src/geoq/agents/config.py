@@ -23,7 +23,12 @@ __all__ = [
     "Prior",
     "Replay",
     "check_int",
+    "default_max_bv",
 ]
+
+#: ``default_max_bv``: the budget up to ``BUDGET_BASE_DIM`` inputs, doubled beyond.
+BUDGET_BASE = 400
+BUDGET_BASE_DIM = 3
 
 Prior = Literal["midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
@@ -40,10 +45,10 @@ class GPQConfig:
     kernel: KernelName = "euclidean"
     """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated``
     (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph)."""
-    max_bv: int = 400
-    """Basis-vector budget of the sparse online GP. Measured on the swing-up (squared
-    exponential, 2,500 steps): 200 BVs reached success >= 0.9 in 0 of 6 seeds, 400 in
-    6 of 6: the balancing region needs the resolution."""
+    max_bv: int | None = None
+    """Basis-vector budget of the sparse online GP. ``None``: :func:`default_max_bv` of
+    the input dimension ``d_s + d_a`` (400 up to 3 inputs, 800 beyond), resolved by
+    :class:`GPQAgent`, whose ``config`` holds the number."""
     gamma: float = 0.98
     """Discount factor."""
     exploration: Exploration = "ucb"
@@ -105,9 +110,10 @@ class GPQConfig:
     """Fitted-Q phases use the most recent ``window`` transitions. One that leaves the
     window is forgotten: where nothing else was seen the value returns to the
     optimistic prior and the agent goes back to explore (the mountain car's greedy
-    return wavered after 6,500 steps with 5,000; docs/design-notes.md). A phase holds
-    the covariances of ``window x n_candidates`` next-state pairs with the basis:
-    ``8 window n_candidates max_bv`` bytes (0.67 GB at the defaults)."""
+    return wavered after 6,500 steps with 5,000; docs/design-notes.md). The agent
+    keeps the covariances of ``window x n_candidates`` next-state pairs with the basis
+    between phases: up to ``1.5 x 8 window n_candidates max_bv`` bytes (1 GB at the
+    swing-up's defaults)."""
     replay: Replay = "uniform"
     """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
     all transitions alike); ``none``: no replay, the targets stay those computed
@@ -175,7 +181,8 @@ class GPQConfig:
             raise ValueError(
                 f"exploration must be one of {EXPLORATION_MODES}, got {self.exploration!r}"
             )
-        check_int(self.max_bv, "max_bv", 1)
+        if self.max_bv is not None:
+            check_int(self.max_bv, "max_bv", 1)
         check_int(self.n_candidates, "n_candidates", 3)
         check_int(self.train_every, "train_every", 1)
         check_int(self.max_sweeps, "max_sweeps", 0)
@@ -221,6 +228,19 @@ class GPQConfig:
             if isinstance(d.get(name), list):
                 d[name] = tuple(d[name])
         return cls(**d)
+
+
+def default_max_bv(input_dim: int) -> int:
+    """The basis-vector budget for ``input_dim = d_s + d_a`` inputs: 400 for up to 3, 800 beyond.
+
+    A grid of fixed resolution needs ``c^d`` points, so the budget a task needs grows
+    with its input dimension. 400 is what the swing-up (3 inputs) needs, 800 what
+    Gymnasium's ``Pendulum-v1`` (4 inputs) needs (docs/design-notes.md). The doubling
+    stops at 4 inputs: nothing larger was measured, a step costs ``O(max_bv^2)`` and
+    the fitted-Q covariances ``O(window n_candidates max_bv)`` (``window``).
+    """
+    check_int(input_dim, "input_dim", 1)
+    return BUDGET_BASE * (2 if input_dim > BUDGET_BASE_DIM else 1)
 
 
 def check_int(value: Any, name: str, minimum: int) -> None:

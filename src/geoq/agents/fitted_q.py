@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from geoq._typing import FloatArray
+from geoq._typing import FloatArray, IntArray
 
 __all__ = ["FittedQResult", "fitted_q_sweeps"]
 
@@ -72,6 +72,7 @@ def fitted_q_sweeps(
     bounds: tuple[float, float] = (-np.inf, np.inf),
     n_active: int = 3,
     refresh_every: int = 10,
+    slots: IntArray | None = None,
 ) -> FittedQResult:
     """Iterate ``y <- r + gamma c max_a' Q_y(s', a')`` with the DTC posterior on a fixed basis.
 
@@ -79,7 +80,9 @@ def fitted_q_sweeps(
     ----------
     V : whitened features of the stored inputs, ``R^{-T} K_BX`` ``[m, N]``.
     K_next : covariances of the next states x candidates with the basis
-        ``[N * K, m]`` (row-major over ``(transition, candidate)``).
+        ``[N * K, S]`` (row-major over ``(transition, candidate)``), basis vector
+        ``j`` in column ``slots[j]``; the other ``S - m`` columns must be finite and
+        get zero weight (:class:`~geoq.agents._covariance_cache.NextStateCovariances`).
     R : upper Cholesky factor of ``K_BV`` ``[m, m]``.
     noise : observation-noise variance ``sigma0^2`` (standardised units).
     rewards, continues : ``[N]``; ``continues = 1 - terminated`` (a truncation
@@ -98,18 +101,23 @@ def fitted_q_sweeps(
         full one). A full sweep runs every ``refresh_every`` sweeps and whenever a
         sweep changes no target by more than ``tol``; only a full sweep can end
         the iteration, so the fixed point is the one of the max over all candidates.
+    slots : the column of ``K_next`` of each basis vector ``[m]`` (default: ``0..m-1``).
     """
     m, N = V.shape
     K = K_next.shape[0] // max(N, 1)
     B = noise * np.eye(m) + V @ V.T  # [m, m]
     factor = scipy.linalg.cho_factor(B, lower=True, check_finite=False)
     # Pre-applied solves: weights = R^{-1} B^{-1} V z, so a sweep is two mat-vecs.
-    M = scipy.linalg.solve_triangular(
+    M_basis = scipy.linalg.solve_triangular(
         R, scipy.linalg.cho_solve(factor, V, check_finite=False), check_finite=False
     )  # [m, N]
+    if slots is None and K_next.shape[1] == m:
+        M = M_basis
+    else:  # rows in K_next's column order, zero where no basis vector sits
+        M = np.zeros((K_next.shape[1], N))
+        M[np.arange(m) if slots is None else slots] = M_basis
     n_active = min(max(int(n_active), 1), K)
-    K_all = K_next.reshape(N, K, m)
-    rows = np.arange(N)[:, None]
+    first_row = np.arange(N)[:, None] * K  # [N, 1]
     y = np.array(targets0, dtype=np.float64)
     change = np.inf
     sweeps = since_full = 0
@@ -120,11 +128,13 @@ def fitted_q_sweeps(
         if full or K_active is None:
             q_all = (K_next @ weights).reshape(N, K)
             top = np.argpartition(q_all, K - n_active, axis=1)[:, K - n_active :]
-            K_active = K_all[rows, top]  # [N, n_active, m]: the best candidates now
+            # [N n_active, S]: the rows of the best candidates now (one flat gather; the
+            # flat mat-vec below gives each row the bits of the full one above)
+            K_active = K_next.take((first_row + top).ravel(), axis=0)
             q_next = q_all.max(axis=1)
             since_full = 0
         else:
-            q_next = (K_active @ weights).max(axis=1)
+            q_next = (K_active @ weights).reshape(N, n_active).max(axis=1)
             since_full += 1
         y_new = np.clip(rewards + gamma * continues * (y_mean + y_scale * q_next), *bounds)
         change = float(np.max(np.abs(y_new - y))) if N else 0.0

@@ -56,12 +56,12 @@ import scipy.linalg
 from gymnasium import spaces
 
 from geoq._threads import single_blas_thread
-from geoq._typing import FloatArray
+from geoq._typing import FloatArray, IntArray
 from geoq.agents._covariance_cache import NextStateCovariances
 from geoq.agents._persist import load_agent, save_agent
 from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer
-from geoq.agents.config import REPLAYS, GPQConfig, check_int
+from geoq.agents.config import REPLAYS, GPQConfig, check_int, default_max_bv
 from geoq.agents.fitted_q import fitted_q_sweeps
 from geoq.agents.graph_replay import imagine_transitions
 from geoq.gp import SparseOnlineGP
@@ -117,7 +117,8 @@ class GPQAgent:
     env : a ``gymnasium.Env`` with a 1-D Box observation space and a 1-D Box
         action space with finite bounds, or the id of a registered one.
     kernel : ``"euclidean" | "nearest" | "interpolated" | "resistance"``.
-    max_bv : basis-vector budget of the sparse GP.
+    max_bv : basis-vector budget of the sparse GP (default: :func:`default_max_bv` of
+        ``d_s + d_a``, 400 up to 3 inputs, 800 beyond).
     seed : seed of every random choice (exploration, candidates, env resets).
     periods : wrap-around period of each observation dimension (raw units, 0 =
         not periodic); known for the bundled tasks.
@@ -129,7 +130,7 @@ class GPQAgent:
         self,
         env: gymnasium.Env | str,
         kernel: KernelName = "euclidean",
-        max_bv: int = 400,
+        max_bv: int | None = None,
         seed: int | None = None,
         *,
         periods: Sequence[float] | None = None,
@@ -139,13 +140,15 @@ class GPQAgent:
         unknown = sorted(set(config) - {f.name for f in fields(GPQConfig)})
         if unknown:
             raise TypeError(f"GPQAgent got unknown argument(s) {unknown}")
-        self.config = GPQConfig(kernel=kernel, max_bv=max_bv, **config)
-        #: Length-scales fitted by evidence (``hyperparameters="evidence"``), else None.
-        self.fitted_lengthscale: tuple[float, ...] | None = None
         self.env: gymnasium.Env | None = _as_env(env)
         obs_space, act_space = _check_spaces(self.env)
         self.obs_dim = int(obs_space.shape[0])
         self.action_dim = int(act_space.shape[0])
+        if max_bv is None:
+            max_bv = default_max_bv(self.obs_dim + self.action_dim)
+        self.config = GPQConfig(kernel=kernel, max_bv=max_bv, **config)
+        #: Length-scales fitted by evidence (``hyperparameters="evidence"``), else None.
+        self.fitted_lengthscale: tuple[float, ...] | None = None
         self.action_low = act_space.low.astype(np.float64)
         self.action_high = act_space.high.astype(np.float64)
         self.env_id = self.env.spec.id if self.env.spec is not None else ""
@@ -201,9 +204,15 @@ class GPQAgent:
         self.evidence_fits: list[dict[str, Any]] = []
         #: The next evidence fit runs once this many transitions are stored.
         self.evidence_due = 0
-        self._next_covariances = NextStateCovariances()
+        self._next_covariances = NextStateCovariances(self.max_bv)
 
     # ------------------------------------------------------------------ set-up
+    @property
+    def max_bv(self) -> int:
+        """The basis-vector budget: ``config.max_bv``, or :func:`default_max_bv` if None."""
+        c = self.config
+        return c.max_bv if c.max_bv is not None else default_max_bv(self.obs_dim + self.action_dim)
+
     def _lengthscale(self) -> float | tuple[float, ...]:
         c = self.config
         if self.fitted_lengthscale is not None:
@@ -218,7 +227,7 @@ class GPQAgent:
         c = self.config
         ls = self._lengthscale()
         return QGPConfig(
-            kernel=c.kernel, max_bv=c.max_bv, tol=c.tol, noise=c.noise, lengthscale=ls,
+            kernel=c.kernel, max_bv=self.max_bv, tol=c.tol, noise=c.noise, lengthscale=ls,
             amplitude=c.amplitude, eps=c.eps, sigma_sp=c.sigma_sp, sigma_se=c.sigma_se,
             resistance_lengthscale=c.resistance_lengthscale,
             wrap_angle=bool(np.any(np.asarray(self.scaling.periods) > 0)),
@@ -228,7 +237,7 @@ class GPQAgent:
     def _new_gp(self) -> SparseOnlineGP:
         c = self.config
         return SparseOnlineGP(
-            make_kernel(self._q_config()), noise=c.noise, max_bv=c.max_bv, tol=c.tol
+            make_kernel(self._q_config()), noise=c.noise, max_bv=self.max_bv, tol=c.tol
         )
 
     # ------------------------------------------------------------------ inputs
@@ -523,11 +532,11 @@ class GPQAgent:
         Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
         bv = gp.basis_vectors
         V = scipy.linalg.solve_triangular(Rf, gp.kernel.to_basis(X, bv).T, trans="T")  # [m, N]
-        K_next = self._next_state_covariances(S2, N, bv)  # [N' K, m]
+        K_next, slots = self._next_state_covariances(S2, N, bv)  # [N' K, S], [m]
         result = fitted_q_sweeps(
             V, K_next, Rf, c.noise, R, 1.0 - term.astype(np.float64), c.gamma, y0,
             y_mean=self.y_mean, y_scale=self.y_scale, max_sweeps=c.max_sweeps,
-            tol=c.sweep_tol * self.y_scale, bounds=bounds,
+            tol=c.sweep_tol * self.y_scale, bounds=bounds, slots=slots,
         )  # fmt: skip
         y = result.targets
         self.buffer.set_targets(y[:N])
@@ -539,20 +548,25 @@ class GPQAgent:
         self.fitted_q_sweeps.append(result.sweeps)
         return result.sweeps
 
-    def _next_state_covariances(self, S2: FloatArray, n_stored: int, bv: FloatArray) -> FloatArray:
-        """``k([s'_i, a_k], BV)`` ``[len(S2) K, m]``: the first ``n_stored`` rows are the stored
-        transitions (entries kept from the last phase where the kernel allows,
+    def _next_state_covariances(
+        self, S2: FloatArray, n_stored: int, bv: FloatArray
+    ) -> tuple[FloatArray, IntArray]:
+        """``k([s'_i, a_k], BV)`` ``[len(S2) K, S]`` with basis vector ``j`` in column
+        ``slots[j]``, and ``slots`` ``[m]``. The first ``n_stored`` rows are the stored
+        transitions (kept from phase to phase where the kernel allows,
         :class:`NextStateCovariances`), the rest imagined ones (computed)."""
         kernel = self.gp.kernel
         if kernel.tracks_basis:
-            return kernel.to_basis(self._candidate_inputs(S2), bv)
-        K_stored = self._next_covariances.get(
+            return kernel.to_basis(self._candidate_inputs(S2), bv), np.arange(bv.shape[0])
+        K_stored, slots = self._next_covariances.get(
             kernel, self._candidate_inputs, S2[:n_stored], len(self.buffer) - n_stored, bv,
             self.candidates.shape[0],
         )  # fmt: skip
         if len(S2) == n_stored:
-            return K_stored
-        return np.vstack([K_stored, kernel.to_basis(self._candidate_inputs(S2[n_stored:]), bv)])
+            return K_stored, slots
+        imagined = np.zeros(((len(S2) - n_stored) * self.candidates.shape[0], K_stored.shape[1]))
+        imagined[:, slots] = kernel.to_basis(self._candidate_inputs(S2[n_stored:]), bv)
+        return np.vstack([K_stored, imagined]), slots
 
     def _add_imagined(
         self,

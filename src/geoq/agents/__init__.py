@@ -4,7 +4,9 @@
 * :mod:`geoq.agents.acquisition`: candidate actions and acquisitions (pure functions).
 * :mod:`geoq.agents.fitted_q`: fitted Q-iteration on the sparse GP's basis.
 * :mod:`geoq.agents.config`: :class:`GPQConfig`, every setting of the agent, validated.
-* :mod:`geoq.agents.graph_replay`: transitions imagined by the eq. 2 graph (``replay="graph"``).
+* :mod:`geoq.agents.graph_replay`: transitions imagined by the JC12 eq. 2 graph
+  (``replay="graph"``).
+* :mod:`geoq.agents._covariance_cache`: the fitted-Q phases' covariances, kept between phases.
 * :mod:`geoq.agents.buffer`: the stored transitions and episode records.
 * :mod:`geoq.agents._persist`: the agent's ``.npz`` file format.
 

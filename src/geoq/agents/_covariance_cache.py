@@ -119,8 +119,7 @@ class NextStateCovariances:
             raise ValueError("a kernel that follows its basis cannot reuse covariances")
         N, K = next_states.shape[0], int(n_candidates)
         if first < self._row_first or first > self._row_first + self._n:
-            self.clear()  # not a forward slide of what is held: start afresh
-            self._row_first = first
+            self._row_first, self._n = first, 0  # not a forward slide: rows afresh, same slots
         slots, new = self._assign_slots(basis)
         kept = self._row_first + self._n - first  # transitions held and still wanted
         kept = min(kept, N)

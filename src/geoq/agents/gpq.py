@@ -1,6 +1,6 @@
 """``GPQAgent``: online GP Q-learning for continuous control (beyond the paper).
 
-The paper's future work (§6): "applying the presented method in a policy
+The paper's future work (JC12 §6): "applying the presented method in a policy
 iteration framework, while exploiting the probabilistic nature of GPs to
 facilitate exploration". The agent, in Stable-Baselines3's vocabulary::
 

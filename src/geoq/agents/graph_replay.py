@@ -11,7 +11,7 @@ agent's length-scale units passes the threshold of JC12 eq. 2,
 node knows what followed it: its reward ``r_j``, its step ``s'_j - s_j`` and
 whether it terminated. A state-action pair ``x = [s, a]`` that was never
 tried is put into the graph as a virtual node: its linked nodes predict its
-outcome, weighted by eq. 2's ``w_j = exp(-||x - x_j||^2 / 2)``: the next state
+outcome, weighted by JC12 eq. 2's ``w_j = exp(-||x - x_j||^2 / 2)``: the next state
 is ``s + step``, the step, the reward and the termination (``> 1/2``) fitted
 locally (below). A pair with no linked node gets no imagined transition:
 where the graph knows nothing the agent keeps its optimism and has to go and
@@ -161,7 +161,7 @@ def imagine_transitions(
     if not np.any(ok):
         return empty
     dist, idx, linked = dist[ok], np.where(linked[ok], idx[ok], 0), linked[ok]
-    w = np.where(linked, np.exp(-0.5 * dist**2), 0.0)  # [n, k] eq. 2 weights
+    w = np.where(linked, np.exp(-0.5 * dist**2), 0.0)  # [n, k] JC12 eq. 2 weights
     w /= w.sum(axis=1, keepdims=True)
     per = np.asarray(periods, dtype=np.float64)
     step = wrap_difference(S2 - S, per[:d_s])  # [N, d_s]

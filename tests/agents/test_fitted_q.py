@@ -100,3 +100,23 @@ def test_active_candidate_sweeps_reach_the_fixed_point_of_full_sweeps() -> None:
     pruned = fitted_q_sweeps(*args, **common, n_active=1, refresh_every=7)  # type: ignore[arg-type]
     assert full.sweeps < 2_000 and pruned.sweeps < 2_000
     np.testing.assert_allclose(pruned.targets, full.targets, atol=1e-9)
+
+
+def test_slot_columns_give_the_plain_layouts_targets() -> None:
+    """Basis columns permuted into slots among columns of junk (zero weight) change nothing
+    but rounding."""
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
+    gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, -np.arange(len(X), dtype=float))
+    V, Kn, R = _features(kernel, X, Xn, gp.basis_vectors)
+    m = Kn.shape[1]
+    rng = np.random.default_rng(3)
+    slots = rng.permutation(m + 5)[:m]
+    wide = rng.uniform(-1e3, 1e3, size=(Kn.shape[0], m + 5))  # finite junk where no BV sits
+    wide[:, slots] = Kn
+    common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=300, tol=1e-11)
+    args = (R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
+    plain = fitted_q_sweeps(V, Kn, *args, **common)  # type: ignore[arg-type]
+    slotted = fitted_q_sweeps(V, wide, *args, **common, slots=slots)  # type: ignore[arg-type]
+    assert slotted.sweeps == plain.sweeps
+    np.testing.assert_allclose(slotted.targets, plain.targets, rtol=0, atol=1e-10)

@@ -4,6 +4,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= results/demo
+# Worker processes of the reproduction's sweeps (results do not depend on it).
+JOBS   ?= 2
 
 .PHONY: install test demo lint bench reproduce-paper suite clean
 
@@ -19,13 +21,13 @@ test: install
 	$(BIN)/python -m pytest -q
 
 demo: install
-	$(BIN)/geoq reproduce --out $(OUT) --scale quick
+	$(BIN)/geoq reproduce --out $(OUT) --scale quick --jobs $(JOBS)
 
 reproduce-paper: install
-	$(BIN)/geoq reproduce --out results/paper --scale paper --jobs 2
+	$(BIN)/geoq reproduce --out results/paper --scale paper --jobs $(JOBS)
 
 suite: install
-	$(BIN)/geoq suite --out results/suite --scale quick --jobs 2
+	$(BIN)/geoq suite --out results/suite --scale quick --jobs $(JOBS)
 
 lint: install
 	$(BIN)/ruff check src tests benchmarks

@@ -139,7 +139,7 @@ def reproduce(
             help=(
                 "quick: a small protocol that finishes in minutes on 2 cores (make demo). "
                 "paper: the full protocol of the paper (>= 10 seeds, ~10 basis budgets "
-                "between 5 and 200); about 4 minutes with --jobs 2 on a 2-core machine."
+                "between 5 and 200); about 10 minutes with --jobs 2 on a 2-core machine."
             ),
             case_sensitive=False,
         ),

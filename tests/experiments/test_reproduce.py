@@ -142,3 +142,10 @@ def test_plotting_functions_return_figures():
     fig3 = plot_budget_curves(rows)
     assert [ax.get_xlabel() for ax in fig3.axes] == ["max number of basis vectors"] * 2
     assert len(fig3.axes[0].lines) == 2
+
+
+def test_worker_processes_do_not_change_the_results(run_dir, tmp_path):
+    """Two workers (the validation grid of the tuning and the cells) give the same files."""
+    reproduce(tmp_path, config=TINY, progress=False, jobs=2)
+    for name in ("tuning.csv", "fig3.csv", "fig1.csv", "fig2.csv"):
+        assert (tmp_path / name).read_bytes() == (run_dir / name).read_bytes(), name

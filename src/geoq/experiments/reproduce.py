@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import platform
 import time
 import warnings
@@ -51,7 +52,7 @@ from geoq.experiments.fig3 import (
 from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.experiments.report import render_report
 from geoq.experiments.seeding import STREAM, rng_for
-from geoq.experiments.sweep import cell_spec, run_sweep
+from geoq.experiments.sweep import cap_jobs, cell_spec, run_sweep
 from geoq.experiments.tuning import TUNING_COLUMNS, TuningResult, tune
 from geoq.gp import NumericalWarning
 from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
@@ -80,7 +81,7 @@ def save_figure(fig: Figure, path: Path) -> None:
     atomic_write_bytes(path, buffer.getvalue())
 
 
-def _tuning(out: Path, cfg: ReproConfig, policy_sigma: float) -> TuningResult:
+def _tuning(out: Path, cfg: ReproConfig, policy_sigma: float, jobs: int = 1) -> TuningResult:
     """Tune once per configuration; reuse ``tuning.json`` when it was made for the same one."""
     path = out / "tuning.json"
     key = {"config": cfg.as_dict(), "policy_sigma": policy_sigma}
@@ -91,7 +92,7 @@ def _tuning(out: Path, cfg: ReproConfig, policy_sigma: float) -> TuningResult:
                 return TuningResult.from_dict(stored["result"])
         except (ValueError, KeyError, TypeError):
             pass  # unreadable or foreign: tune again
-    result = tune(cfg, default_policy(policy_sigma))
+    result = tune(cfg, default_policy(policy_sigma), jobs=jobs)
     atomic_write_json(path, {"key": key, "result": result.as_dict()})
     return result
 
@@ -124,7 +125,9 @@ def reproduce(
     sigma = DEFAULT_POLICY_SIGMA
     policy = default_policy(sigma)
 
-    tuning = _tuning(out, cfg, sigma)
+    # The validation grid runs in local worker processes (a remote cluster is for the cells).
+    local_jobs = (os.cpu_count() or 1) if jobs == -1 else jobs
+    tuning = _tuning(out, cfg, sigma, cap_jobs(local_jobs)[0] if scheduler is None else 1)
     write_csv(out / "tuning.csv", tuning.validation, TUNING_COLUMNS)
 
     truth_dir = (out / "cells" / "truth").resolve()

@@ -21,6 +21,7 @@ Fig. 3.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import warnings
 from collections.abc import Iterator, Sequence
@@ -127,18 +128,19 @@ class TuningResult:
         )
 
 
-def tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
+def tune(cfg: ReproConfig, policy: GaussianPolicy, jobs: int = 1) -> TuningResult:
     """Choose every kernel's hyper-parameters for the run ``cfg``.
 
     Repairs of the indefinite geodesic Gram matrices (:class:`NumericalWarning`)
-    are expected while scanning the grid and are not shown.
+    are expected while scanning the grid and are not shown. ``jobs``: worker
+    processes of the validation grid (:func:`select_by_validation`).
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        return _tune(cfg, policy)
+        return _tune(cfg, policy, jobs)
 
 
-def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
+def _tune(cfg: ReproConfig, policy: GaussianPolicy, jobs: int) -> TuningResult:
     base = cfg.learner
     rollouts = collect_rollouts(
         cfg.train_rollouts,
@@ -172,8 +174,9 @@ def _tune(cfg: ReproConfig, policy: GaussianPolicy) -> TuningResult:
         if method not in cfg.kernels:
             continue
         best, records = select_by_validation(
-            method, rollouts, states, actions, truth, shared, cfg.graph_eps, cfg.tune_max_bv
-        )
+            method, rollouts, states, actions, truth, shared, cfg.graph_eps, cfg.tune_max_bv,
+            jobs=jobs,
+        )  # fmt: skip
         validation.extend(records)
         configs[method] = best.replace(max_bv=base.max_bv)
     return TuningResult(configs, evidence, validation)
@@ -233,6 +236,7 @@ def select_by_validation(
     shared: QGPConfig,
     graph_eps: Sequence[float],
     tune_max_bv: int,
+    jobs: int = 1,
 ) -> tuple[QGPConfig, list[dict[str, Any]]]:
     """The candidate of graph kernel ``method`` with the lowest validation MSE.
 
@@ -242,23 +246,53 @@ def select_by_validation(
     space), after a refit on the final BV set and graph. Returns the best candidate
     (its ``max_bv`` is ``tune_max_bv``) and one record per candidate
     (:data:`TUNING_COLUMNS`). ``RuntimeError`` if every candidate diverged.
+    ``jobs > 1`` scores the candidates in that many joblib (loky) worker processes,
+    one native thread each; the result does not depend on it.
     """
+    candidates = list(_candidates(method, graph_eps, tune_max_bv, shared))
+    score = functools.partial(
+        _validation_score, rollouts=rollouts, states=states, actions=actions, truth=truth
+    )
+    if jobs > 1 and len(candidates) > 1:
+        from joblib import Parallel, delayed, parallel_config
+
+        with parallel_config(backend="loky", n_jobs=jobs, inner_max_num_threads=1):
+            scores = Parallel(batch_size=1)(delayed(score)(c) for c in candidates)
+    else:
+        scores = [score(c) for c in candidates]
     best: tuple[float, QGPConfig] | None = None
     validation: list[dict[str, Any]] = []
-    for candidate in _candidates(method, graph_eps, tune_max_bv, shared):
-        # Scored after a refit on the final BV set and graph: the online posterior
-        # of a graph kernel is stale (its Gram changes as the graph grows), and
-        # the hyper-parameters should measure the kernel, not that staleness.
-        learner = GPQFunction(candidate.replace(refit="end")).fit(rollouts)
-        err = mse(learner.predict(states, actions), truth)
-        assert learner.gp_ is not None
+    for candidate, (err, n_bv) in zip(candidates, scores, strict=True):
         record = {c: getattr(candidate, c) for c in TUNING_COLUMNS[1:-2]}
-        validation.append({"kernel": method, **record, "n_bv": learner.gp_.n_bv, "val_mse": err})
+        validation.append({"kernel": method, **record, "n_bv": n_bv, "val_mse": err})
         if np.isfinite(err) and (best is None or err < best[0]):
             best = (err, candidate)
     if best is None:
         raise RuntimeError(f"every {method} candidate gave a non-finite validation MSE")
     return best[1], validation
+
+
+def _validation_score(
+    candidate: QGPConfig,
+    *,
+    rollouts: Sequence[Rollout],
+    states: FloatArray,
+    actions: FloatArray,
+    truth: FloatArray,
+) -> tuple[float, int]:
+    """Validation MSE and basis-vector count of one candidate.
+
+    Scored after a refit on the final BV set and graph: the online posterior of a
+    graph kernel is stale (its Gram changes as the graph grows), and the
+    hyper-parameters should measure the kernel, not that staleness. Repairs of the
+    indefinite Gram (:class:`NumericalWarning`) are expected and not shown.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        learner = GPQFunction(candidate.replace(refit="end")).fit(rollouts)
+        err = mse(learner.predict(states, actions), truth)
+    assert learner.gp_ is not None
+    return err, learner.gp_.n_bv
 
 
 def _candidates(

@@ -7,7 +7,7 @@ import pytest
 from tests.agents._tasks import PointToGoal
 
 from geoq.agents import GPQAgent
-from geoq.agents._covariance_cache import NextStateCovariances
+from geoq.agents._covariance_cache import GROWTH, NextStateCovariances
 from geoq.kernels import SquaredExponential
 
 
@@ -95,3 +95,21 @@ def test_a_kernel_that_follows_its_basis_is_refused() -> None:
         NextStateCovariances().get(
             agent.gp.kernel, lambda s: s, np.zeros((1, 1)), 0, np.zeros((1, 2)), 1
         )
+
+
+def test_the_buffer_stays_within_growth_of_a_sliding_window() -> None:
+    """Memory: the rows held never exceed GROWTH x the window's, however long the run."""
+    kernel = SquaredExponential(lengthscale=0.5)
+    inputs = _candidate_inputs(np.zeros((1, 1)))
+    states = np.linspace(0, 1, 2_000)[:, None]
+    basis = np.zeros((3, 2))
+    cache = NextStateCovariances()
+    window = 100
+    for total in range(25, 2_000, 25):
+        first = max(0, total - window)
+        got, slots = cache.get(kernel, inputs, states[first:total], first, basis, 1)
+        assert got.shape == (total - first, 3)
+        assert cache._K.shape[0] <= GROWTH * window + 1
+    np.testing.assert_array_equal(
+        got[:, slots], kernel.to_basis(inputs(states[first:total]), basis)
+    )

@@ -92,10 +92,12 @@ def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
     # Tamper: two basis vectors in one covariance column.
     with np.load(path, allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
-    arrays["covariances/slots"] = np.zeros_like(arrays["covariances/slots"])
-    np.savez(tampered, **arrays)
-    with pytest.raises(ArchiveError, match="inconsistent"):
-        GPQAgent.load(tampered)
+    good_slots = arrays["covariances/slots"]
+    for bad in (np.zeros_like(good_slots), good_slots + 10**9, good_slots.astype(float)):
+        arrays["covariances/slots"] = bad  # two BVs in one column, far outside the budget
+        np.savez(tampered, **arrays)
+        with pytest.raises(ArchiveError, match="inconsistent"):
+            GPQAgent.load(tampered)
 
 
 def test_files_without_covariance_slots_still_load(tmp_path: Path) -> None:

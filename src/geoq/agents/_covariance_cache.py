@@ -83,18 +83,18 @@ class NextStateCovariances:
         """Start from the slots of :meth:`slot_arrays` (the entries are computed afresh)."""
         self.clear()
         rows = np.ascontiguousarray(basis, dtype=np.float64)
+        slots = np.asarray(slots)
+        n = rows.shape[0] if rows.ndim == 2 else -1
         if (
-            rows.ndim != 2
-            or slots.shape != (rows.shape[0],)
-            or len(set(slots.tolist())) < len(slots)
+            slots.shape != (n,)
+            or slots.dtype.kind not in "iu"
+            or len(set(slots.tolist())) < n
+            or (n and not 0 <= int(slots.min()) <= int(slots.max()) < max(self.min_slots, n))
         ):
-            raise ValueError("covariance slots: one distinct slot per basis vector expected")
+            raise ValueError(
+                "covariance slots: one distinct slot in [0, budget) per basis vector expected"
+            )
         self._slots = {b.tobytes(): int(j) for b, j in zip(rows, slots, strict=True)}
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes held between phases."""
-        return int(self._K.nbytes)
 
     def get(
         self,

@@ -461,26 +461,13 @@ class SparseOnlineGP:
         mu, bv = self._mu[:m], self._bv[:m]
         repaired = self._counts.features_repaired
         if n >= FACTOR_ROUTE_MIN * m and not repaired:
-            self._predict_factored(Xa, R, S, mu, bv, mean, std)
+            predict_factored(self.kernel, Xa, R, S, mu, bv, mean, std, self._counts)
         else:
             predict_chunked(self.kernel, Xa, R, S, mu, bv, mean, std, repaired, self._counts)
         if std is None:
             return mean
         self._warn_once()
         return mean, std
-
-    def _predict_factored(
-        self,
-        X: FloatArray,
-        R: FloatArray,
-        S: FloatArray,
-        mu: FloatArray,
-        bv: FloatArray,
-        mean: FloatArray,
-        std: FloatArray | None,
-    ) -> None:
-        """:func:`~geoq.gp._predict.predict_factored` with this GP's kernel and counters."""
-        predict_factored(self.kernel, X, R, S, mu, bv, mean, std, self._counts)
 
     # ----------------------------------------------------------- persistence
     def save(self, path: str | PathLike[str]) -> None:

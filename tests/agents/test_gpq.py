@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 import zipfile
 from pathlib import Path
 
@@ -69,6 +70,65 @@ def test_save_load_round_trip_acts_identically(kernel: str, tmp_path: Path) -> N
     agent.learn(40)
     loaded.learn(40)
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+
+
+def test_fitted_q_phases_follow_train_every_and_train_fraction(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Mid-episode phases at multiples of ``train_every`` once the window grew by
+    ``train_fraction`` since the last phase; one at every episode's end (the rule
+    replayed step by step)."""
+    phases: list[int] = []
+    train = GPQAgent.train
+
+    def spy(self: GPQAgent) -> int:
+        phases.append(self.num_timesteps)
+        return train(self)
+
+    monkeypatch.setattr(GPQAgent, "train", spy)
+    agent = _agent(train_every=5, train_fraction=0.2, window=60).learn(150)
+    ends = {e.timesteps for e in agent.episodes}
+    expected, last = [], 0
+    for t in range(1, 151):
+        if t in ends or (t % 5 == 0 and t - last >= 0.2 * min(t, 60)):
+            expected.append(t)
+            last = t
+    if agent.episodes[-1].timesteps != 150:
+        expected.append(150)  # learn() ends with a phase
+    assert phases == expected
+    skipped = [t for t in range(5, 150, 5) if t not in phases]
+    assert len(skipped) > 5  # the fraction did skip multiples of train_every
+
+
+def test_round_trip_keeps_the_phase_schedule(tmp_path: Path) -> None:
+    agent = _agent(max_bv=30, train_every=3, train_fraction=0.25).learn(70)
+    path = tmp_path / "agent.npz"
+    agent.save(path)
+    loaded = GPQAgent.load(path, env=PointToGoal())
+    assert loaded.last_train_timestep == agent.last_train_timestep
+    agent.learn(50)
+    loaded.learn(50)
+    assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
+    obs = np.linspace(-1, 1, 11)[:, None]
+    np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+
+
+def test_files_without_train_fraction_keep_the_fixed_schedule(tmp_path: Path) -> None:
+    """An agent saved before ``train_fraction`` existed had phases every ``train_every``."""
+    agent = _agent(max_bv=20, train_every=7, train_fraction=0.0).learn(40)
+    path, old = tmp_path / "agent.npz", tmp_path / "old.npz"
+    agent.save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["config"]["train_fraction"], meta["last_train_timestep"]
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez(old, **arrays)
+    loaded = GPQAgent.load(old, env=PointToGoal())
+    assert loaded.config == agent.config and loaded.config.train_fraction == 0.0
+    agent.learn(30)
+    loaded.learn(30)
+    assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
 
 
 def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
@@ -171,8 +231,9 @@ def test_default_budget_doubles_past_three_inputs() -> None:
 
 
 def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() -> None:
-    none = _agent(replay="none").learn(120)
-    uniform = _agent(replay="uniform").learn(120)
+    fixed = {"train_every": 250, "train_fraction": 0.0}  # no phase inside the first episode
+    none = _agent(replay="none", **fixed).learn(120)
+    uniform = _agent(replay="uniform", **fixed).learn(120)
     assert none.fitted_q_sweeps and set(none.fitted_q_sweeps) == {0}
     assert max(uniform.fitted_q_sweeps) > 0
     # Without replay a stored target is exactly what was bootstrapped online: r + gamma max Q

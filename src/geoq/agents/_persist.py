@@ -48,6 +48,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
         "reward_range": list(agent.reward_range),
         "terminal_reward_range": list(agent.terminal_reward_range),
         "num_timesteps": agent.num_timesteps,
+        "last_train_timestep": agent.last_train_timestep,
         "fitted_q_sweeps": agent.fitted_q_sweeps,
         "imagined_counts": agent.imagined_counts,
         "train_seconds": agent.train_seconds,
@@ -76,7 +77,8 @@ def load_agent(
     _, a = load_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION)
     try:
         meta = json.loads(str(a["meta"]))
-        config = GPQConfig.from_dict(meta["config"])
+        # A file from before train_fraction ran its phases every train_every steps.
+        config = GPQConfig.from_dict({"train_fraction": 0.0, **meta["config"]})
         sc = meta["scaling"]
         scaling = InputScaling(tuple(sc["scale"]), tuple(sc["periods"]), tuple(sc["names"]))
         box = np.asarray(a["action_box"], dtype=np.float64)
@@ -120,6 +122,7 @@ def load_agent(
     t_lo, t_hi = meta.get("terminal_reward_range", (np.inf, -np.inf))
     agent.terminal_reward_range = (float(t_lo), float(t_hi))
     agent.num_timesteps = int(meta["num_timesteps"])
+    agent.last_train_timestep = int(meta.get("last_train_timestep", agent.num_timesteps))
     agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
     agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]
     agent.train_seconds = float(meta.get("train_seconds", 0.0))

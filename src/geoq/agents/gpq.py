@@ -24,7 +24,8 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    the bootstrapped target ``y_t = r_t + gamma (1 - terminated) max_k Q(s_{t+1},
    a_k)`` (the same call that chooses the next action gives the max). Graph
    kernels grow and shrink their graph with the basis set, as in the paper.
-4. **Fitted-Q phases** every ``train_every`` steps and at each episode's end:
+4. **Fitted-Q phases** every ``train_every`` (25) steps while the data are few,
+   then each time they grew by ``train_fraction`` (5%), and at each episode's end:
    targets of every stored transition are re-bootstrapped to convergence on the
    current basis set and kernel (:mod:`geoq.agents.fitted_q`), then the
    posterior is refit to them (DTC, :meth:`SparseOnlineGP.refit`).
@@ -195,6 +196,8 @@ class GPQAgent:
             (float(terminal[0]), float(terminal[1])) if terminal else (np.inf, -np.inf)
         )
         self.num_timesteps = 0
+        #: ``num_timesteps`` at the last fitted-Q phase (``train_fraction``).
+        self.last_train_timestep = 0
         self.episodes: list[EpisodeRecord] = []
         self.fitted_q_sweeps: list[int] = []
         self.imagined_counts: list[int] = []
@@ -382,9 +385,7 @@ class GPQAgent:
                 if bar is not None:
                     bar.update(1)
                 episode_over = terminated or truncated
-                if (self.num_timesteps % c.train_every == 0 or episode_over) and (
-                    not self.scaling_pending
-                ):
+                if (self._phase_due() or episode_over) and not self.scaling_pending:
                     self.train()
                     if not episode_over:
                         mean, std = self.q_candidates(s2)
@@ -408,6 +409,14 @@ class GPQAgent:
         if bar is not None:
             bar.close()
         return self
+
+    def _phase_due(self) -> bool:
+        """Whether a fitted-Q phase is due mid-episode (``train_every``, ``train_fraction``)."""
+        c = self.config
+        if self.num_timesteps % c.train_every:
+            return False
+        new = self.num_timesteps - self.last_train_timestep
+        return new >= c.train_fraction * min(len(self.buffer), c.window)
 
     def _q_or_none(self, states: FloatArray) -> tuple[FloatArray | None, FloatArray | None]:
         """:meth:`q_candidates`, or ``(None, None)`` while the input scaling is pending."""
@@ -463,6 +472,7 @@ class GPQAgent:
         """
         if self.scaling_pending:
             return 0
+        self.last_train_timestep = self.num_timesteps
         t0 = time.perf_counter()
         if self.data_scaled and self.env is not None and self._spread_outgrew_scaling():
             self._rescale_from_data()

@@ -131,6 +131,17 @@ def test_files_without_train_fraction_keep_the_fixed_schedule(tmp_path: Path) ->
     assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
 
 
+@pytest.mark.parametrize("kernel", ["euclidean", "nearest"])
+def test_q_mean_is_the_mean_of_q_candidates_bit_for_bit(kernel: str) -> None:
+    agent = _agent(kernel=kernel, max_bv=30).learn(60)
+    for n in (1, 7, 200):  # both prediction routes (per-chunk solve, factored GEMM)
+        states = np.linspace(-1, 1, n)[:, None]
+        mean, _ = agent.q_candidates(states)
+        q = agent.q_mean(states)
+        assert q.shape == mean.shape == (n, agent.candidates.shape[0])
+        np.testing.assert_array_equal(q.view(np.uint64), mean.view(np.uint64))
+
+
 def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
     agent = _agent(max_bv=20).learn(30)
     path = tmp_path / "agent.npz"

@@ -70,6 +70,24 @@ def main() -> None:
             f"{replay_costs[0]:.2f} s, uniform {replay_costs[1]:.2f} s, graph "
             f"{replay_costs[2]:.2f} s ({replay_costs[2] / replay_costs[1]:.1f}x uniform)"
         )
+    _replay_cost_per_episode()
+
+
+def _replay_cost_per_episode(max_bv: int = 200, episodes: int = 6) -> None:
+    """Fitted-Q + replay seconds per 250-step swing-up episode while learning, each replay
+    mode from the same seed (the replay issue's goal: graph under 1 s at 200 BVs)."""
+    for replay in ("uniform", "graph"):
+        agent = GPQAgent(ENV, max_bv=max_bv, seed=0, replay=replay)
+        per_episode = []
+        for _ in range(episodes):
+            before = agent.train_seconds
+            agent.learn(250)
+            per_episode.append(agent.train_seconds - before)
+        print(
+            f"{max_bv:>6} {replay:>7} replay while learning: fitted-Q + replay s per episode "
+            + " ".join(f"{t:.2f}" for t in per_episode)
+            + f" (max {max(per_episode):.2f}, {len(agent.fitted_q_sweeps)} phases)"
+        )
 
 
 if __name__ == "__main__":

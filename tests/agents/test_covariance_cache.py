@@ -31,15 +31,21 @@ def test_reused_covariances_equal_a_fresh_computation_bit_for_bit(period) -> Non
     basis = rng.uniform(-1, 1, size=(30, 3))
     cache = NextStateCovariances(min_slots=20)
     window = 150
-    for total in (40, 90, 160, 160, 230, 300, 320, 340, 360, 380, 400):
+    for i, total in enumerate((40, 90, 160, 160, 230, 300, 320, 340, 360, 380, 400)):
         first = max(0, total - window)
         keep = rng.permutation(len(basis))[: len(basis) - 4]  # delete 4, reorder the rest
         basis = np.vstack([basis[keep], rng.uniform(-1, 1, size=(6, 3))])  # add 6
-        got, slots = cache.get(kernel, inputs, states[first:total], first, basis, len(candidates))
-        assert got.shape[0] == (total - first) * len(candidates)
+        # every other phase, scratch rows (imagined next states) after the held ones:
+        # computed afresh, and the next phase's new transitions overwrite them
+        scratch = rng.uniform(-1, 1, size=(i % 2 * (7 + 20 * i), 2))
+        got, slots = cache.get(
+            kernel, inputs, states[first:total], first, basis, len(candidates),
+            scratch_states=scratch if len(scratch) else None,
+        )  # fmt: skip
+        assert got.shape[0] == (total - first + len(scratch)) * len(candidates)
         assert len(set(slots.tolist())) == len(basis) and np.all(np.isfinite(got))
         np.testing.assert_array_equal(
-            got[:, slots], kernel.to_basis(inputs(states[first:total]), basis)
+            got[:, slots], kernel.to_basis(inputs(np.vstack([states[first:total], scratch])), basis)
         )
     cache.clear()
     got, slots = cache.get(kernel, inputs, states[:10], 0, basis, len(candidates))
@@ -69,8 +75,12 @@ def test_agents_learn_the_same_with_and_without_reuse(monkeypatch: pytest.Monkey
     the free ones: the zero-weight columns' stale values do not count)."""
     kept_get = NextStateCovariances.get
 
-    def fresh(self, kernel, inputs, next_states, first, basis, n_candidates):  # type: ignore[no-untyped-def]
-        kept, slots = kept_get(self, kernel, inputs, next_states, first, basis, n_candidates)
+    def fresh(self, kernel, inputs, next_states, first, basis, n_candidates, scratch_states=None):  # type: ignore[no-untyped-def]
+        kept, slots = kept_get(
+            self, kernel, inputs, next_states, first, basis, n_candidates, scratch_states
+        )
+        if scratch_states is not None:
+            next_states = np.vstack([next_states, scratch_states])
         out = np.zeros_like(kept)
         out[:, slots] = kernel.to_basis(inputs(next_states), basis)
         return out, slots

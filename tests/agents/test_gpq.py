@@ -142,6 +142,17 @@ def test_q_mean_is_the_mean_of_q_candidates_bit_for_bit(kernel: str) -> None:
         np.testing.assert_array_equal(q.view(np.uint64), mean.view(np.uint64))
 
 
+@pytest.mark.parametrize("kernel", ["euclidean", "resistance"])
+def test_stored_next_q_is_q_mean_at_the_stored_next_states(kernel: str) -> None:
+    """Graph replay's TD priorities: from the kept covariances (squared exponential) or
+    one GP call (a kernel that follows its basis), the posterior mean either way."""
+    agent = _agent(kernel=kernel, max_bv=30, window=50).learn(80)
+    _, _, _, S2, _ = agent.buffer.arrays(last=agent.config.window)
+    q = agent._stored_next_q(S2)
+    assert q.shape == (50, agent.candidates.shape[0])
+    np.testing.assert_allclose(q, agent.q_mean(S2), rtol=1e-12, atol=1e-12)
+
+
 def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
     agent = _agent(max_bv=20).learn(30)
     path = tmp_path / "agent.npz"

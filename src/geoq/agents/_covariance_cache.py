@@ -55,8 +55,9 @@ class NextStateCovariances:
 
     Transitions are identified by their absolute index in the agent's buffer (which
     only grows: the fitted-Q window slides forward), basis vectors by their bytes.
-    Memory: one ``[rows, slots]`` buffer, at most ``GROWTH`` x the rows of a window;
-    ``min_slots`` columns from the start (the GP's budget: no regrowth as it fills).
+    Memory: one ``[rows, slots]`` buffer, at most ``GROWTH`` x the rows of a window and
+    its scratch rows; ``min_slots`` columns from the start (the GP's budget: no regrowth
+    as it fills).
     """
 
     def __init__(self, min_slots: int = 0) -> None:
@@ -104,16 +105,19 @@ class NextStateCovariances:
         first: int,
         basis: FloatArray,
         n_candidates: int,
+        scratch_states: FloatArray | None = None,
     ) -> tuple[FloatArray, IntArray]:
         """The covariances of ``candidate_inputs(next_states)`` with ``basis``, and the slots.
 
         ``next_states`` ``[N, d_s]`` are the transitions ``first, ..., first + N - 1`` of
         the buffer; ``candidate_inputs`` maps ``[n, d_s]`` states to their ``[n K, d]``
         inputs (state-major). ``kernel`` must not follow its basis (``tracks_basis``).
+        ``scratch_states`` ``[n, d_s]`` (e.g. imagined next states) get ``n K`` rows
+        right after them, computed afresh and not kept: no copy of the kept rows.
 
-        Returns ``K`` ``[N K, S]`` (a view, valid until the next call) and ``slots``
-        ``[m]``: ``K[:, slots[j]] = k(inputs, basis[j])``; the other ``S - m`` columns
-        hold finite values of no meaning.
+        Returns ``K`` ``[(N + n) K, S]`` (a view, valid until the next call) and
+        ``slots`` ``[m]``: ``K[:, slots[j]] = k(inputs, basis[j])``; the other ``S - m``
+        columns hold finite values of no meaning.
         """
         if kernel.tracks_basis:
             raise ValueError("a kernel that follows its basis cannot reuse covariances")
@@ -123,7 +127,9 @@ class NextStateCovariances:
         slots, new = self._assign_slots(basis)
         kept = self._row_first + self._n - first  # transitions held and still wanted
         kept = min(kept, N)
-        self._make_room(first, N, K, max(self.min_slots, int(slots.max(initial=-1)) + 1))
+        n_scratch = 0 if scratch_states is None else scratch_states.shape[0]
+        n_slots = max(self.min_slots, int(slots.max(initial=-1)) + 1)
+        self._make_room(first, N + n_scratch, K, n_slots)
         r0 = (first - self._row_first) * K
         if kept and new.size:  # new basis vectors: their columns for the rows held
             block = kernel.to_basis(candidate_inputs(next_states[:kept]), basis[new])
@@ -132,7 +138,10 @@ class NextStateCovariances:
             block = kernel.to_basis(candidate_inputs(next_states[kept:]), basis)
             _scatter_columns(block, self._K, r0 + kept * K, slots)
         self._n = first + N - self._row_first
-        return self._K[r0 : r0 + N * K], slots
+        if scratch_states is not None and n_scratch:
+            block = kernel.to_basis(candidate_inputs(scratch_states), basis)
+            _scatter_columns(block, self._K, r0 + N * K, slots)
+        return self._K[r0 : r0 + (N + n_scratch) * K], slots
 
     def _assign_slots(self, basis: FloatArray) -> tuple[IntArray, IntArray]:
         """Slots of ``basis`` ``[m]`` (kept ones unchanged, freed ones reused lowest first)
@@ -149,8 +158,9 @@ class NextStateCovariances:
         return slots, new
 
     def _make_room(self, first: int, N: int, K: int, n_slots: int) -> None:
-        """Make the buffer hold rows for transitions ``first .. first + N - 1`` and
-        ``n_slots`` columns, keeping the rows of the transitions still wanted."""
+        """Make the buffer hold rows for transitions ``first .. first + N - 1`` (the
+        held ones and any scratch rows after them) and ``n_slots`` columns, keeping the
+        rows of the transitions still wanted."""
         rows, cols = self._K.shape
         kept = max(0, min(self._row_first + self._n, first + N) - first)
         start = (first - self._row_first) * K

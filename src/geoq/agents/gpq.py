@@ -577,15 +577,22 @@ class GPQAgent:
         kernel = self.gp.kernel
         if kernel.tracks_basis:
             return kernel.to_basis(self._candidate_inputs(S2), bv), np.arange(bv.shape[0])
-        K_stored, slots = self._next_covariances.get(
+        return self._next_covariances.get(
             kernel, self._candidate_inputs, S2[:n_stored], len(self.buffer) - n_stored, bv,
-            self.candidates.shape[0],
+            self.candidates.shape[0], scratch_states=S2[n_stored:] if len(S2) > n_stored else None,
         )  # fmt: skip
-        if len(S2) == n_stored:
-            return K_stored, slots
-        imagined = np.zeros(((len(S2) - n_stored) * self.candidates.shape[0], K_stored.shape[1]))
-        imagined[:, slots] = kernel.to_basis(self._candidate_inputs(S2[n_stored:]), bv)
-        return np.vstack([K_stored, imagined]), slots
+
+    def _stored_next_q(self, S2: FloatArray) -> FloatArray:
+        """Posterior mean of ``Q`` ``[N, K]`` at the stored next states ``S2`` (the last
+        ``N`` transitions) x candidates: :meth:`q_mean` up to rounding, but from the kept
+        covariances (one mat-vec, no kernel evaluation) where the kernel allows."""
+        gp = self.gp
+        if gp.kernel.tracks_basis:
+            return self.q_mean(S2)
+        K_next, slots = self._next_state_covariances(S2, len(S2), gp.basis_vectors)
+        weights = np.zeros(K_next.shape[1])
+        weights[slots] = gp.alpha
+        return self.y_mean + self.y_scale * (K_next @ weights).reshape(len(S2), -1)
 
     def _add_imagined(
         self,
@@ -604,7 +611,7 @@ class GPQAgent:
         transitions start from the posterior mean at their inputs.
         """
         c = self.config
-        td = R + c.gamma * (1.0 - term) * self.q_mean(S2).max(axis=1) - y0
+        td = R + c.gamma * (1.0 - term) * self._stored_next_q(S2).max(axis=1) - y0
         units = np.asarray(self.scaling.scale) * np.broadcast_to(
             np.asarray(self._lengthscale(), dtype=np.float64), (self.scaling.dim,)
         )

@@ -100,6 +100,19 @@ def test_fitted_q_phases_follow_train_every_and_train_fraction(
     assert len(skipped) > 5  # the fraction did skip multiples of train_every
 
 
+def test_residuals_say_whether_a_phase_converged() -> None:
+    """A phase cut at one sweep leaves targets moving; one given room converges (the
+    tiny task's fitted-Q is a contraction) and its residual is within the tolerance."""
+    cut = _agent(max_bv=30, max_sweeps=1, sweep_tol=1e-9).learn(60)
+    assert set(cut.fitted_q_sweeps) == {1} and min(cut.fitted_q_residuals) > 0.0
+    room = _agent(max_bv=30, max_sweeps=5_000).learn(60)
+    pairs = zip(room.fitted_q_sweeps, room.fitted_q_residuals, strict=True)
+    converged = [r for n, r in pairs if n < 5_000]
+    assert converged and max(converged) <= room.config.sweep_tol * 2 * max(
+        abs(v) for v in room.value_bounds()
+    )
+
+
 def test_round_trip_keeps_the_phase_schedule(tmp_path: Path) -> None:
     agent = _agent(max_bv=30, train_every=3, train_fraction=0.25).learn(70)
     path = tmp_path / "agent.npz"
@@ -109,6 +122,7 @@ def test_round_trip_keeps_the_phase_schedule(tmp_path: Path) -> None:
     agent.learn(50)
     loaded.learn(50)
     assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
+    assert loaded.fitted_q_residuals == agent.fitted_q_residuals
     obs = np.linspace(-1, 1, 11)[:, None]
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
 
@@ -122,13 +136,17 @@ def test_files_without_train_fraction_keep_the_fixed_schedule(tmp_path: Path) ->
         arrays = {k: npz[k] for k in npz.files}
     meta = json.loads(str(arrays["meta"]))
     del meta["config"]["train_fraction"], meta["last_train_timestep"]
+    del meta["fitted_q_residuals"]  # not recorded before either
     arrays["meta"] = np.asarray(json.dumps(meta))
     np.savez(old, **arrays)
     loaded = GPQAgent.load(old, env=PointToGoal())
     assert loaded.config == agent.config and loaded.config.train_fraction == 0.0
+    n_old = len(agent.fitted_q_sweeps)
     agent.learn(30)
     loaded.learn(30)
     assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
+    assert np.all(np.isnan(loaded.fitted_q_residuals[:n_old]))
+    assert loaded.fitted_q_residuals[n_old:] == agent.fitted_q_residuals[n_old:]
 
 
 @pytest.mark.parametrize("kernel", ["euclidean", "nearest"])
@@ -258,6 +276,8 @@ def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() ->
     uniform = _agent(replay="uniform", **fixed).learn(120)
     assert none.fitted_q_sweeps and set(none.fitted_q_sweeps) == {0}
     assert max(uniform.fitted_q_sweeps) > 0
+    assert set(none.fitted_q_residuals) == {0.0}
+    assert len(uniform.fitted_q_residuals) == len(uniform.fitted_q_sweeps)
     # Without replay a stored target is exactly what was bootstrapped online: r + gamma max Q
     # clipped, never recomputed; the sweeps of uniform replay move them.
     # The first episode (40 steps) is the same for both (same seed, same prior); its

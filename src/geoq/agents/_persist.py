@@ -50,6 +50,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
         "num_timesteps": agent.num_timesteps,
         "last_train_timestep": agent.last_train_timestep,
         "fitted_q_sweeps": agent.fitted_q_sweeps,
+        "fitted_q_residuals": agent.fitted_q_residuals,
         "imagined_counts": agent.imagined_counts,
         "train_seconds": agent.train_seconds,
         "scaling_pending": agent.scaling_pending,
@@ -124,6 +125,9 @@ def load_agent(
     agent.num_timesteps = int(meta["num_timesteps"])
     agent.last_train_timestep = int(meta.get("last_train_timestep", agent.num_timesteps))
     agent.fitted_q_sweeps = [int(v) for v in meta["fitted_q_sweeps"]]
+    # Files before the field did not record the residuals: NaN, one per phase.
+    residuals = meta.get("fitted_q_residuals", [np.nan] * len(agent.fitted_q_sweeps))
+    agent.fitted_q_residuals = [float(v) for v in residuals]
     agent.imagined_counts = [int(v) for v in meta.get("imagined_counts", [])]
     agent.train_seconds = float(meta.get("train_seconds", 0.0))
     agent.scaling_pending = bool(meta.get("scaling_pending", False))

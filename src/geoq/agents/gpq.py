@@ -200,6 +200,10 @@ class GPQAgent:
         self.last_train_timestep = 0
         self.episodes: list[EpisodeRecord] = []
         self.fitted_q_sweeps: list[int] = []
+        #: Per fitted-Q phase, the largest change of a target in its last sweep (return
+        #: units; 0 without sweeps). Above ``sweep_tol * y_scale``: the phase stopped at
+        #: ``max_sweeps`` without converging (docs/design-notes.md).
+        self.fitted_q_residuals: list[float] = []
         self.imagined_counts: list[int] = []
         self.train_seconds = 0.0
         self.rescales = 0
@@ -547,6 +551,7 @@ class GPQAgent:
             self.y_mean, self.y_scale = self._standardisation(y0, bounds)
             gp.refit(X, (y0 - self.y_mean) / self.y_scale)
             self.fitted_q_sweeps.append(0)
+            self.fitted_q_residuals.append(0.0)
             return 0
         Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
         bv = gp.basis_vectors
@@ -565,6 +570,7 @@ class GPQAgent:
         # exploration (docs/design-notes.md).
         gp.refit(X[:N], (y[:N] - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)
+        self.fitted_q_residuals.append(result.max_change)
         return result.sweeps
 
     def _next_state_covariances(

@@ -201,8 +201,8 @@ class GPQAgent:
         self.episodes: list[EpisodeRecord] = []
         self.fitted_q_sweeps: list[int] = []
         #: Per fitted-Q phase, the largest change of a target in its last sweep (return
-        #: units; 0 without sweeps). Above ``sweep_tol * y_scale``: the phase stopped at
-        #: ``max_sweeps`` without converging (docs/design-notes.md).
+        #: units; 0 without sweeps). Above ``sweep_tol`` x the phase's ``y_scale``: it
+        #: stopped at ``max_sweeps`` without converging (docs/design-notes.md).
         self.fitted_q_residuals: list[float] = []
         self.imagined_counts: list[int] = []
         self.train_seconds = 0.0

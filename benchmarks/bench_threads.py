@@ -75,7 +75,7 @@ def child() -> None:
     out: dict[str, float] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        t, se_gp, _ = fit_time(lambda: SquaredExponential(0.3, period=PERIOD), data, 5)
+        t, se_gp, _, _ = fit_time(lambda: SquaredExponential(0.3, period=PERIOD), data, 5)
         out["SE fit, max_bv 200"] = t
         Xq = np.vstack([X for X, _ in data])
         for n, calls in ((10, 200), (len(Xq), 10)):
@@ -86,7 +86,7 @@ def child() -> None:
                     se_gp.predict(Xq[:n], return_std=True)
                 best = min(best, (time.perf_counter() - start) / calls)
             out[f"SE predict {n} points"] = best
-        t, gp, _ = fit_time(
+        t, gp, _, _ = fit_time(
             lambda: ResistanceKernel(eps=0.3, lengthscale=1.0, period=PERIOD), data[:1], 1
         )
         out["resistance fit, 250 points"] = t

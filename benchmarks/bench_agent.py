@@ -33,28 +33,30 @@ def _per_call(fn, repeat: int) -> float:  # type: ignore[no-untyped-def]
     return (time.perf_counter() - start) / repeat
 
 
-def main() -> None:
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
     warnings.simplefilter("ignore")
     env = gymnasium.make(ENV)
     env.reset(seed=0)
-    t_env = _per_call(lambda: env.step(np.array([1.0])), 2_000)
+    t_env = _per_call(lambda: env.step(np.array([1.0])), 20 if quick else 2_000)
     print(f"raw env step: {1e6 * t_env:.0f} us")
     print(f"{'max_bv':>6} {'learn ms/step':>14} {'of which fitted-Q (phases)':>26} "
           f"{'predict ms':>11} {'GP predict+update ms':>21} {'agent / GP':>10}")  # fmt: skip
-    for max_bv in (200, 400):
+    repeat = 3 if quick else 300
+    for max_bv in (20,) if quick else (200, 400):
         agent = GPQAgent(ENV, max_bv=max_bv, seed=0)
-        n = 1_500
+        n = 100 if quick else 1_500
         start = time.perf_counter()
         agent.learn(n)
         t_learn = (time.perf_counter() - start) / n
         phases = len(agent.fitted_q_sweeps)
         t_train = agent.train_seconds / n  # the phases learn() ran, per step
         obs = np.array([0.3, -1.0])
-        t_predict = _per_call(lambda: agent.predict(obs), 300)  # noqa: B023
+        t_predict = _per_call(lambda: agent.predict(obs), repeat)  # noqa: B023
         X = agent._candidate_inputs(obs[None, :])
         x = agent.inputs(obs[None, :], np.array([[1.0]]))[0]
-        t_gp = _per_call(lambda: agent.gp.predict(X, return_std=True), 300)  # noqa: B023
-        t_gp += _per_call(lambda: agent.gp.update(x, 0.0), 300)  # noqa: B023
+        t_gp = _per_call(lambda: agent.gp.predict(X, return_std=True), repeat)  # noqa: B023
+        t_gp += _per_call(lambda: agent.gp.update(x, 0.0), repeat)  # noqa: B023
         print(
             f"{max_bv:>6} {1e3 * t_learn:>14.2f} {1e3 * t_train:>17.2f} ({phases:>3} phases) "
             f"{1e3 * t_predict:>11.2f} {1e3 * t_gp:>21.2f} {t_learn / t_gp:>10.1f}x"
@@ -70,10 +72,13 @@ def main() -> None:
             f"{replay_costs[0]:.2f} s, uniform {replay_costs[1]:.2f} s, graph "
             f"{replay_costs[2]:.2f} s ({replay_costs[2] / replay_costs[1]:.1f}x uniform)"
         )
-    _replay_cost_per_episode()
+    if quick:
+        _replay_cost_per_episode(max_bv=20, episodes=1, steps=50)
+    else:
+        _replay_cost_per_episode()
 
 
-def _replay_cost_per_episode(max_bv: int = 200, episodes: int = 6) -> None:
+def _replay_cost_per_episode(max_bv: int = 200, episodes: int = 6, steps: int = 250) -> None:
     """Fitted-Q + replay seconds per 250-step swing-up episode while learning, each replay
     mode from the same seed (the replay issue's goal: graph under 1 s at 200 BVs)."""
     for replay in ("uniform", "graph"):
@@ -81,7 +86,7 @@ def _replay_cost_per_episode(max_bv: int = 200, episodes: int = 6) -> None:
         per_episode = []
         for _ in range(episodes):
             before = agent.train_seconds
-            agent.learn(250)
+            agent.learn(steps)
             per_episode.append(agent.train_seconds - before)
         print(
             f"{max_bv:>6} {replay:>7} replay while learning: fitted-Q + replay s per episode "

@@ -72,8 +72,13 @@ def tuned_learners() -> tuple[dict[str, QGPConfig], str]:
     return fallback, "QUICK_TUNED (no results/demo/tuning.json)"
 
 
-def main() -> None:
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
     cfg = config_for_scale("quick")
+    budgets = BUDGETS
+    if quick:
+        cfg = cfg.replace(train_rollouts=1, train_steps=40, eval_pairs=10, mc_rollouts=4)
+        budgets = (10,)
     sigma = DEFAULT_POLICY_SIGMA
     truth = truth_cell(TruthCell.of(cfg, 0, sigma))
     rollouts = collect_rollouts(
@@ -86,7 +91,7 @@ def main() -> None:
     arrays = [np.asarray(truth[k]) for k in ("states", "actions", "mc_mean", "mc_stderr", "td")]
     learners, source = tuned_learners()
     print(f"one Fig. 3 cell (seed 0, quick scale, one BLAS thread); settings: {source}")
-    header = "".join(f"{'max_bv ' + str(b):>14}" for b in BUDGETS)
+    header = "".join(f"{'max_bv ' + str(b):>14}" for b in budgets)
     print(f"  {'variant':>10} {'kernel':>12} {header}")
     total = 0.0
     with warnings.catch_warnings(), one_blas_thread():
@@ -96,7 +101,7 @@ def main() -> None:
             if variant != "tuned":
                 learner = variant_learner(variant, learner)
             cells = []
-            for budget in BUDGETS:
+            for budget in budgets:
                 config = learner.replace(kernel=kernel, max_bv=budget)
                 start = time.perf_counter()
                 score_learner(

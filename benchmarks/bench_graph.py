@@ -86,7 +86,7 @@ def build(X: np.ndarray, rollout: np.ndarray, eps: float, temporal: bool) -> tup
     return g, times
 
 
-def bench_graph() -> None:
+def bench_graph(sizes: tuple[tuple[int, float], ...] = SIZES, n_delete: int | None = None) -> None:
     print(
         f"{'regime':7s} {'n':>5s} {'comp':>4s} {'degree':>6s} | {'add ms':>7s} "
         f"{'scipy APSP ms':>13s} {'ratio':>7s} | {'delete ms':>9s} {'scipy affected ms':>17s} "
@@ -94,7 +94,7 @@ def bench_graph() -> None:
     )
     rng = np.random.default_rng(1)
     for name, eps, temporal in REGIMES:
-        for n, r2min in SIZES:
+        for n, r2min in sizes:
             X, rollout = trajectory_nodes(n, r2min)
             g, times = build(X, rollout, eps, temporal)
             t_add = float(np.mean(times[-N_ADD:]))  # adds at n - N_ADD ... n nodes
@@ -107,7 +107,7 @@ def bench_graph() -> None:
             n_comp = connected_components(A, directed=False)[0]
             degree = g.degrees().mean()
             t_del, t_base, n_aff = [], [], []
-            for _ in range(N_DELETE[name]):
+            for _ in range(N_DELETE[name] if n_delete is None else n_delete):
                 v = int(rng.integers(g.n_nodes))
                 affected = affected_sources(g._P, g.n_nodes, v, DELETE_RTOL)
                 keep = np.r_[0:v, v + 1 : g.n_nodes]
@@ -151,8 +151,8 @@ def _fit_time(make: Callable[[], Kernel], data: list, repeats: int = 3) -> tuple
     return best, gp
 
 
-def bench_fit() -> None:
-    rollouts = collect_rollouts(3, STEPS, default_policy(), np.random.default_rng(0))
+def bench_fit(steps: int = STEPS, repeats: int = 3) -> None:
+    rollouts = collect_rollouts(3, steps, default_policy(), np.random.default_rng(0))
     Xs = [PENDULUM_SCALING.transform(np.column_stack([r.states, r.actions])) for r in rollouts]
     y_all = np.concatenate([r.returns for r in rollouts])
     data = [
@@ -176,7 +176,7 @@ def bench_fit() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
         for name, make in kernels.items():
-            t, gp = _fit_time(make, data)
+            t, gp = _fit_time(make, data, repeats)
             assert isinstance(gp, SparseOnlineGP)
             d = gp.diagnostics
             t_se = t if t_se is None else t_se
@@ -186,10 +186,15 @@ def bench_fit() -> None:
             )
 
 
-def main() -> None:
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
     with _single_threaded_blas():
-        bench_graph()
-        bench_fit()
+        if quick:
+            bench_graph(sizes=((60, 0.03),), n_delete=3)
+            bench_fit(steps=40, repeats=1)
+        else:
+            bench_graph()
+            bench_fit()
 
 
 if __name__ == "__main__":

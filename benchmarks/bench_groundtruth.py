@@ -40,20 +40,22 @@ def _python_sarsa(cells, acts, rewards, gamma, step_size, n_cells, n_actions):  
     return table
 
 
-def main() -> None:
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
+    n_pairs, n_rollouts, n_episodes = (20, 5, 20) if quick else (N_PAIRS, N_ROLLOUTS, 800)
     policy = default_policy()
-    states, actions = sample_evaluation_pairs(N_PAIRS, policy, np.random.default_rng(1))
+    states, actions = sample_evaluation_pairs(n_pairs, policy, np.random.default_rng(1))
 
-    est, t_mc = _timed(mc_q_values, states, actions, policy, np.random.default_rng(2), N_ROLLOUTS)
-    n_slow = 10
+    est, t_mc = _timed(mc_q_values, states, actions, policy, np.random.default_rng(2), n_rollouts)
+    n_slow = 2 if quick else 10
     _, t_slow = _timed(
         lambda: [
-            mc_q_values(states[i : i + 1], actions[i : i + 1], policy, rng, N_ROLLOUTS)
+            mc_q_values(states[i : i + 1], actions[i : i + 1], policy, rng, n_rollouts)
             for i, rng in enumerate(np.random.default_rng(3).spawn(n_slow))
         ]
     )
-    t_slow_full = t_slow * N_PAIRS / n_slow
-    print(f"MC ground truth, {N_PAIRS} pairs x {N_ROLLOUTS} roll-outs x horizon {est.horizon}")
+    t_slow_full = t_slow * n_pairs / n_slow
+    print(f"MC ground truth, {n_pairs} pairs x {n_rollouts} roll-outs x horizon {est.horizon}")
     print(f"  vectorised over pairs and roll-outs  {t_mc:7.2f} s   (goal < {GOAL_S:.0f} s)")
     print(
         f"  one pair at a time (from {n_slow} pairs)   {t_slow_full:7.2f} s   "
@@ -70,11 +72,13 @@ def main() -> None:
         td_baseline, policy, np.random.default_rng(0), n_episodes=2, steps=2, method="sarsa"
     )
     print(
-        f"\nTD baseline, 800 episodes x 150 steps = 120,000 updates "
+        f"\nTD baseline, {n_episodes} episodes x 150 steps = {150 * n_episodes:,} updates "
         f"(first call incl. compile/cache load: {t_compile + t_compile2:.2f} s)"
     )
     for method in ("td0", "sarsa"):
-        td, t_td = _timed(td_baseline, policy, np.random.default_rng(4), method=method)
+        td, t_td = _timed(
+            td_baseline, policy, np.random.default_rng(4), n_episodes=n_episodes, method=method
+        )
         err = mse(td.q(states, actions), est.mean)
         print(
             f"  {method:5s} simulate + update  {t_td:7.3f} s   (goal < {GOAL_S:.0f} s)   "
@@ -83,15 +87,17 @@ def main() -> None:
         )
 
     grid = StateActionGrid.pendulum()
-    rollouts = collect_rollouts(800, 151, policy, np.random.default_rng(4))
+    rollouts = collect_rollouts(n_episodes, 151, policy, np.random.default_rng(4))
     S = np.stack([ro.states for ro in rollouts])
     A = np.stack([ro.actions for ro in rollouts])
     R = np.stack([ro.rewards[:150] for ro in rollouts])
     _, t_upd = _timed(sarsa_evaluate, S, A, R, grid, 0.95, "sarsa")
-    n_py = 80
+    n_py = min(80, n_episodes)
     cells, acts = grid.state_index(S[:n_py]).tolist(), grid.action_index(A[:n_py]).tolist()
-    _, t_py = _timed(_python_sarsa, cells, acts, R[:n_py].tolist(), 0.95, 0.8, 3600, 80)
-    t_py_full = t_py * 800 / n_py
+    _, t_py = _timed(
+        _python_sarsa, cells, acts, R[:n_py].tolist(), 0.95, 0.8, grid.n_cells, grid.n_actions
+    )
+    t_py_full = t_py * n_episodes / n_py
     print(
         f"  SARSA updates only: compiled {t_upd:.4f} s, pure Python loop "
         f"(from {n_py} episodes) {t_py_full:.3f} s"

@@ -70,8 +70,8 @@ def _scratch_kernel() -> ResistanceKernel:
     return k
 
 
-def pendulum_data() -> list[tuple[np.ndarray, np.ndarray]]:
-    rollouts = collect_rollouts(3, STEPS, default_policy(), np.random.default_rng(0))
+def pendulum_data(steps: int = STEPS) -> list[tuple[np.ndarray, np.ndarray]]:
+    rollouts = collect_rollouts(3, steps, default_policy(), np.random.default_rng(0))
     Xs = [PENDULUM_SCALING.transform(np.column_stack([r.states, r.actions])) for r in rollouts]
     y_all = np.concatenate([r.returns for r in rollouts])
     return [
@@ -80,7 +80,7 @@ def pendulum_data() -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def fit_time(
-    make: Callable[[], Kernel], data: list, repeats: int, **gp_args: int
+    make: Callable[[], Kernel], data: list, repeats: int, max_bv: int = MAX_BV
 ) -> tuple[float, SparseOnlineGP, float, list[int]]:
     """Best wall time of a streamed fit, the GP, the seconds inside the basis hooks and
     the basis size at each resync."""
@@ -100,7 +100,7 @@ def fit_time(
                     return out
 
                 setattr(dist, name, timed)
-        gp = SparseOnlineGP(kernel, noise=0.01, max_bv=MAX_BV, **gp_args)
+        gp = SparseOnlineGP(kernel, noise=0.01, max_bv=max_bv)
         resync_sizes: list[int] = []
         resync = gp._resync_q
 
@@ -146,23 +146,24 @@ def _seconds(fn: Callable[[], object], repeats: int) -> float:
     return (time.perf_counter() - start) / repeats
 
 
-def main(scratch: bool = True) -> None:
-    data = pendulum_data()
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
+    data = pendulum_data(40 if quick else STEPS)
+    max_bv = 20 if quick else MAX_BV
     n = sum(len(y) for _, y in data)
     resistance = lambda: ResistanceKernel(eps=0.3, lengthscale=1.0, period=PERIOD)  # noqa: E731
-    runs: list[tuple[str, Callable[[], Kernel], int, dict[str, int]]] = [
-        ("squared exponential", lambda: SquaredExponential(0.3, period=PERIOD), 5, {}),
-        ("resistance, as shipped", resistance, 2, {}),
+    runs: list[tuple[str, Callable[[], Kernel], int]] = [
+        ("squared exponential", lambda: SquaredExponential(0.3, period=PERIOD), 5),
+        ("resistance, as shipped", resistance, 2),
+        ("resistance, recompute per change", _scratch_kernel, 1),
     ]
-    if scratch:
-        runs.append(("resistance, recompute per change", _scratch_kernel, 1, {}))
-    print(f"sparse online GP fit, {n} pendulum points, max_bv = {MAX_BV} (one BLAS thread):")
+    print(f"sparse online GP fit, {n} pendulum points, max_bv = {max_bv} (one BLAS thread):")
     t_se = None
     shipped_sizes: list[int] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
-        for name, make, repeats, gp_args in runs:
-            t, gp, hooks, sizes = fit_time(make, data, repeats, **gp_args)
+        for name, make, repeats in runs:
+            t, gp, hooks, sizes = fit_time(make, data, repeats, max_bv)
             t_se = t if t_se is None else t_se
             shipped_sizes = sizes if name == "resistance, as shipped" else shipped_sizes
             d = gp.diagnostics
@@ -178,7 +179,7 @@ def main(scratch: bool = True) -> None:
         f"  ({len(shipped_sizes)} resyncs, mean m {np.mean(shipped_sizes):.0f}; nothing else)"
     )
     print(f"  goal: resistance (as shipped) <= {GOAL_RATIO:.0f}x SE")
-    change_costs()
+    change_costs((40,) if quick else (200, 400), (5, 20) if quick else (5, 20, 50, 150))
 
 
 def _random_graph(s: int, rng: np.random.Generator) -> np.ndarray:
@@ -201,13 +202,12 @@ def _cpu_ms(fn: Callable[[], object], repeats: int = 10) -> float:
     return 1e3 * best
 
 
-def change_costs() -> None:
+def change_costs(sizes: tuple[int, ...], ks: tuple[int, ...]) -> None:
     rng = np.random.default_rng(0)
-    ks = (5, 20, 50, 150)
     print("\none change, CPU ms (best of 3): add a node of degree k / remove one / from scratch")
     print(f"  {'s':>4}  " + "  ".join(f"{'k=' + str(k):>15}" for k in ks) + f"  {'scratch':>8}")
     with one_blas_thread():
-        for s in (200, 400):
+        for s in sizes:
             W = _random_graph(s, rng)
             cells = []
             for k in ks:  # node 0 gets exactly k edges (the chain keeps the rest connected)

@@ -38,7 +38,7 @@ def _per_call_us(fn, n: int = 2000) -> float:  # type: ignore[no-untyped-def]
     return 1e6 * best
 
 
-def entry_costs() -> None:
+def entry_costs(calls: int = 200) -> None:
     from threadpoolctl import threadpool_limits
 
     from geoq._threads import blas_controllers, one_blas_thread
@@ -52,10 +52,10 @@ def entry_costs() -> None:
             pass
 
     blas_controllers()  # found once
-    t_tp = _per_call_us(limits, 200)
-    t_ours = _per_call_us(ours)
+    t_tp = _per_call_us(limits, calls)
+    t_ours = _per_call_us(ours, 10 * calls)
     with one_blas_thread():
-        t_nested = _per_call_us(ours)
+        t_nested = _per_call_us(ours, 10 * calls)
     n_libs = len(blas_controllers())
     print(f"enter + leave one BLAS thread ({n_libs} BLAS libraries loaded):")
     print(f"  threadpoolctl.threadpool_limits(1)  {t_tp:8.1f} us")
@@ -64,14 +64,14 @@ def entry_costs() -> None:
     print(f"  ... nested inside another           {t_nested:8.1f} us")
 
 
-def child() -> None:
+def child(quick: bool = False) -> None:
     """Run in a fresh process: time the fits, print JSON."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_resistance import PERIOD, fit_time, pendulum_data
+    from bench_resistance import PERIOD, STEPS, fit_time, pendulum_data
     from geoq.gp import NumericalWarning
     from geoq.kernels import ResistanceKernel, SquaredExponential
 
-    data = pendulum_data()
+    data = pendulum_data(40 if quick else STEPS)
     out: dict[str, float] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NumericalWarning)
@@ -89,7 +89,7 @@ def child() -> None:
         t, gp, _, _ = fit_time(
             lambda: ResistanceKernel(eps=0.3, lengthscale=1.0, period=PERIOD), data[:1], 1
         )
-        out["resistance fit, 250 points"] = t
+        out[f"resistance fit, {len(data[0][1])} points"] = t
         X = np.vstack([X for X, _ in data])
         y = np.concatenate([y for _, y in data])
         refit = np.inf
@@ -101,24 +101,29 @@ def child() -> None:
     print(json.dumps(out))
 
 
-def _run(env_threads: str | None) -> dict[str, float]:
+def _run(env_threads: str | None, quick: bool) -> dict[str, float]:
     env = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
     if env_threads is not None:
         env["OPENBLAS_NUM_THREADS"] = env_threads
     done = subprocess.run(
-        [sys.executable, __file__, "--child"], env=env, capture_output=True, text=True, check=True
+        [sys.executable, __file__, "--child", *(["--quick"] if quick else [])],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     return dict(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
-def main() -> None:
-    entry_costs()
+def main(quick: bool = False) -> None:
+    """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
+    entry_costs(5 if quick else 200)
     best: dict[str | None, dict[str, float]] = {None: {}, "1": {}}
-    for _ in range(3):  # alternate, keep the best of each
+    for _ in range(1 if quick else 3):  # alternate, keep the best of each
         for threads in (None, "1"):
-            for name, t in _run(threads).items():
+            for name, t in _run(threads, quick).items():
                 best[threads][name] = min(best[threads].get(name, np.inf), t)
-    print(f"\nfresh processes, best of 3 (cpus: {os.cpu_count()}), ms:")
+    print(f"\nfresh processes, best of {1 if quick else 3} (cpus: {os.cpu_count()}), ms:")
     print(f"  {'':30s} {'unset':>9s} {'=1':>9s} {'ratio':>7s}")
     for name, t_default in best[None].items():
         t_one = best["1"][name]
@@ -130,6 +135,6 @@ def main() -> None:
 
 if __name__ == "__main__":
     if "--child" in sys.argv:
-        child()
+        child(quick="--quick" in sys.argv)
     else:
         main()

@@ -1,7 +1,9 @@
-"""Run every speed benchmark: ``make bench`` (or ``python benchmarks/run.py [NAME ...]``).
+"""Run every speed benchmark: ``make bench`` (or ``python benchmarks/run.py [--quick] [NAME ...]``).
 
-Each ``benchmarks/bench_*.py`` module has a ``main()`` that prints its own
-table, with ratios against a baseline measured in the same process.
+Each ``benchmarks/bench_*.py`` module has a ``main(quick=False)`` that prints its
+own table, with ratios against a baseline measured in the same process.
+``--quick`` runs every benchmark on tiny sizes, in seconds: its figures mean
+nothing, it checks that the benchmarks still run (``tests/test_benchmarks.py``).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ def _load(path: Path):  # type: ignore[no-untyped-def]
 
 def main(argv: list[str]) -> int:
     here = Path(__file__).resolve().parent
-    wanted = set(argv)
+    quick = "--quick" in argv
+    wanted = {a for a in argv if a != "--quick"}
     print(f"geoq {geoq.__version__}  python {platform.python_version()}  numpy {np.__version__}")
     print(f"machine: {platform.machine()}  cpus: {__import__('os').cpu_count()}\n")
     for path in sorted(here.glob("bench_*.py")):
@@ -35,7 +38,7 @@ def main(argv: list[str]) -> int:
             continue
         print(f"=== {path.stem} ===")
         start = time.perf_counter()
-        _load(path).main()
+        _load(path).main(quick=quick)
         print(f"({path.stem} took {time.perf_counter() - start:.1f} s)\n")
     return 0
 

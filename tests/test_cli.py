@@ -8,8 +8,10 @@ the library and how it reports failures, independently of the science.
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 from typing import Any
@@ -37,6 +39,12 @@ def recorded(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
         calls.append(kwargs)
         if kwargs["out"].name == "boom":
             raise RuntimeError("cell 3 failed:\nsingular matrix")
+        if kwargs["out"].name == "ctrl-c":
+            raise KeyboardInterrupt
+        if kwargs["out"].name == "killed":  # what SIGTERM would run, without killing pytest
+            handler = signal.getsignal(signal.SIGTERM)
+            assert callable(handler), "no SIGTERM handler while the command runs"
+            handler(signal.SIGTERM, None)
 
     module = types.ModuleType("geoq.experiments.reproduce")
     module.reproduce = reproduce  # type: ignore[attr-defined]
@@ -167,6 +175,66 @@ def test_failure_is_exit_1_with_one_line(tmp_path: Path, recorded: list[dict[str
     assert result.exit_code == 1
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert lines == ["geoq reproduce: error: RuntimeError: cell 3 failed: singular matrix"]
+
+
+@pytest.mark.parametrize(("name", "code"), [("ctrl-c", 130), ("killed", 143)])
+def test_ctrl_c_and_sigterm_are_reported_interruptions(
+    tmp_path: Path, recorded: list[dict[str, Any]], name: str, code: int
+) -> None:
+    """SIGTERM (a scheduler's time limit) is handled like Ctrl-C, and the process's own
+    SIGTERM handler is back afterwards."""
+    before = signal.getsignal(signal.SIGTERM)
+    result = _invoke("reproduce", "--out", str(tmp_path / name))
+    assert result.exit_code == code
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert lines == [
+        "geoq reproduce: interrupted; finished cells are kept, rerun the same command to resume"
+    ]
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def _children(pid: int) -> set[int]:
+    """Live child processes of ``pid`` (Linux ``/proc``)."""
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # exited meanwhile
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out.add(int(stat.parent.name))
+    return out
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_sigterm_stops_the_parallel_workers_too(tmp_path: Path) -> None:
+    """Killed by SIGTERM, ``bench-control -j 2`` exits 143 and takes its loky workers
+    with it (with SIGTERM's default action they ran on, orphaned, to the end of
+    their cells)."""
+    exe = Path(sys.executable).with_name("geoq")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "geoq.cli"]
+    args = ["bench-control", "--out", str(tmp_path / "run"), "--seeds", "4", "--timesteps",
+            "3000", "--eval-every", "1000", "--eval-episodes", "1", "-j", "2",
+            "--no-progress"]  # fmt: skip
+    proc = subprocess.Popen([*cmd, *args], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while len(workers := _children(proc.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert len(workers) >= 2, "the workers never started"
+        time.sleep(1.0)  # let them pick up cells
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert "geoq bench-control: interrupted; finished cells are kept; rerun to resume" in err
+    deadline = time.monotonic() + 20
+    while (alive := [w for w in workers if Path(f"/proc/{w}").exists()]) and (
+        time.monotonic() < deadline
+    ):
+        time.sleep(0.2)
+    assert not alive, f"workers {alive} outlived the command"
 
 
 def test_console_script_entry_point() -> None:

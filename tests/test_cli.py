@@ -193,15 +193,16 @@ def test_ctrl_c_and_sigterm_are_reported_interruptions(
     assert signal.getsignal(signal.SIGTERM) is before
 
 
-def _children(pid: int) -> set[int]:
-    """Live child processes of ``pid`` (Linux ``/proc``)."""
+def _loky_workers(pid: int) -> set[int]:
+    """Live loky worker processes whose parent is ``pid`` (Linux ``/proc``)."""
     out = set()
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
+            cmdline = (stat.parent / "cmdline").read_bytes()
         except OSError:  # exited meanwhile
             continue
-        if int(fields[1]) == pid and fields[0] != "Z":
+        if int(fields[1]) == pid and fields[0] != "Z" and b"popen_loky" in cmdline:
             out.add(int(stat.parent.name))
     return out
 
@@ -219,7 +220,7 @@ def test_sigterm_stops_the_parallel_workers_too(tmp_path: Path) -> None:
     proc = subprocess.Popen([*cmd, *args], stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
-        while len(workers := _children(proc.pid)) < 2 and time.monotonic() < deadline:
+        while len(workers := _loky_workers(proc.pid)) < 2 and time.monotonic() < deadline:
             time.sleep(0.2)
         assert len(workers) >= 2, "the workers never started"
         time.sleep(1.0)  # let them pick up cells

@@ -8,6 +8,7 @@ the library and how it reports failures, independently of the science.
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -208,6 +209,7 @@ def _loky_workers(pid: int) -> set[int]:
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="-j 2 is capped to one job on one core")
 def test_sigterm_stops_the_parallel_workers_too(tmp_path: Path) -> None:
     """Killed by SIGTERM, ``bench-control -j 2`` exits 143 and takes its loky workers
     with it (with SIGTERM's default action they ran on, orphaned, to the end of

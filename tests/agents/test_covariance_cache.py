@@ -7,7 +7,7 @@ import pytest
 from tests.agents._tasks import PointToGoal
 
 from geoq.agents import GPQAgent
-from geoq.agents._covariance_cache import GROWTH, NextStateCovariances
+from geoq.agents._covariance_cache import GROWTH, NextStateCovariances, separable_factors
 from geoq.kernels import SquaredExponential
 
 
@@ -123,3 +123,30 @@ def test_the_buffer_stays_within_growth_of_a_sliding_window() -> None:
     np.testing.assert_array_equal(
         got[:, slots], kernel.to_basis(inputs(states[first:total]), basis)
     )
+
+
+@pytest.mark.parametrize("lengthscale", [0.4, (0.3, 0.5, 0.7, 0.9)])
+def test_separable_factors_multiply_to_the_kernel(lengthscale) -> None:  # type: ignore[no-untyped-def]
+    """Oracle: ``k_s(s, s_j) k_a(a, a_j)`` is the squared exponential on ``[s, a]``, wrapped
+    angle included; the state factor is evaluated against the full basis vectors."""
+    rng = np.random.default_rng(5)
+    kernel = SquaredExponential(lengthscale=lengthscale, variance=1.7, period=(2.0, 0.0, 0.0, 0.0))
+    factors = separable_factors(kernel, 2)
+    assert factors is not None
+    state, action = factors
+    assert not state.tracks_basis
+    S, A = rng.uniform(-2, 2, (30, 2)), rng.uniform(-1, 1, (7, 2))
+    basis = rng.uniform(-2, 2, (9, 4))
+    product = state.to_basis(S, basis)[:, None, :] * action.to_basis(A, basis[:, 2:])[None]
+    joint = np.hstack([np.repeat(S, len(A), axis=0), np.tile(A, (len(S), 1))])
+    np.testing.assert_allclose(product.reshape(-1, 9), kernel.to_basis(joint, basis), rtol=1e-13)
+
+
+def test_only_an_unchanged_squared_exponential_is_separable() -> None:
+    class Shifted(SquaredExponential):
+        def to_basis(self, X: np.ndarray, basis: np.ndarray) -> np.ndarray:
+            return super().to_basis(X, basis) + 1.0
+
+    assert separable_factors(Shifted(lengthscale=0.5), 1) is None
+    agent = GPQAgent(PointToGoal(), kernel="resistance", max_bv=10)
+    assert separable_factors(agent.gp.kernel, 1) is None

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from geoq.agents.fitted_q import fitted_q_sweeps
+from geoq.agents.fitted_q import DenseCandidates, SeparableCandidates, fitted_q_sweeps
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import SquaredExponential
 
@@ -120,3 +120,44 @@ def test_slot_columns_give_the_plain_layouts_targets() -> None:
     slotted = fitted_q_sweeps(V, wide, *args, **common, slots=slots)  # type: ignore[arg-type]
     assert slotted.sweeps == plain.sweeps
     np.testing.assert_allclose(slotted.targets, plain.targets, rtol=0, atol=1e-10)
+
+
+def _separable(kernel: SquaredExponential, Xn: np.ndarray, bv: np.ndarray) -> SeparableCandidates:
+    """The chain's next-state covariances as a state factor [N, m] and an action factor [2, m]."""
+    state, action = kernel.restricted(slice(0, 1), kernel.variance), kernel.restricted(slice(1, 2))
+    next_states = Xn[:: len(ACTIONS), :1]
+    return SeparableCandidates(state(next_states, bv[:, :1]), action(ACTIONS[:, None], bv[:, 1:]))
+
+
+def test_separable_covariances_are_the_dense_ones() -> None:
+    """Oracle: the product of the factors is the kernel on the joint inputs, and one matrix
+    product gives every ``Q(s'_i, a_k)`` of the dense mat-vec."""
+    X, Xn, *_ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]), variance=2.5)
+    bv = X[::3]
+    sep, dense = _separable(kernel, Xn, bv), DenseCandidates(kernel(Xn, bv), len(ACTIONS))
+    assert (sep.n_candidates, sep.n_columns) == (dense.n_candidates, dense.n_columns)
+    rng = np.random.default_rng(4)
+    w = rng.normal(size=len(bv))
+    np.testing.assert_allclose(sep.q(w), dense.q(w), rtol=1e-13, atol=1e-13)
+    top = rng.integers(0, len(ACTIONS), size=(len(Xn) // len(ACTIONS), 3))  # repeats allowed
+    np.testing.assert_allclose(
+        sep.restrict(top).q(w), dense.restrict(top).q(w), rtol=1e-13, atol=1e-13
+    )
+
+
+@pytest.mark.parametrize("n_active", [1, None])
+def test_separable_sweeps_are_the_dense_sweeps(n_active: int | None) -> None:
+    """Same sweeps, pruned (the best candidate between full sweeps) or not, as with the
+    dense matrix: the separable form changes how ``Q(s', a_k)`` is computed, not what."""
+    X, Xn, rewards, continues, _ = _chain()
+    kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
+    gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, -np.arange(len(X), dtype=float))
+    bv = gp.basis_vectors
+    V, Kn, R = _features(kernel, X, Xn, bv)
+    common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=300, tol=1e-11, n_active=n_active)
+    args = (R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
+    dense = fitted_q_sweeps(V, Kn, *args, **common, refresh_every=7)  # type: ignore[arg-type]
+    sep = fitted_q_sweeps(V, _separable(kernel, Xn, bv), *args, **common, refresh_every=7)  # type: ignore[arg-type]
+    assert sep.sweeps == dense.sweeps < 300
+    np.testing.assert_allclose(sep.targets, dense.targets, rtol=0, atol=1e-10)

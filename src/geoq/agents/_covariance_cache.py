@@ -2,13 +2,16 @@
 between fitted-Q phases.
 
 A fitted-Q phase needs ``k([s'_i, a_k], BV_j)`` for every stored transition ``i``,
-candidate ``k`` and basis vector ``j``: ``[N K, m]``, the largest matrix of a phase once
-thousands of transitions are stored (336 MB at 10,000 transitions, 21 candidates and
-200 BVs). From one phase to the next most transitions and most basis vectors are the
-same, and an entry of a kernel that does not follow its basis (the squared
-exponential) depends only on its two inputs. So the matrix lives in one place across
-phases and only what is new is computed: rows for new transitions, columns for new
-basis vectors. Nothing is copied per phase:
+candidate ``k`` and basis vector ``j``: ``[N K, m]``. The squared exponential is a
+product of a state and an action factor (:func:`separable_factors`), so the agent keeps
+only the state factor ``k_s(s'_i, BV_j)`` ``[N, m]`` (16 MB at 10,000 transitions and
+200 BVs, against 336 MB for all 21 candidates) and forms the ``[K, m]`` action factor
+per phase (:class:`~geoq.agents.fitted_q.SeparableCandidates`); the cache itself takes
+any ``K`` rows per transition. From one phase to the next most transitions and most
+basis vectors are the same, and an entry of a kernel that does not follow its basis
+(the squared exponential) depends only on its two inputs. So the matrix lives in one
+place across phases and only what is new is computed: rows for new transitions,
+columns for new basis vectors. Nothing is copied per phase:
 
 * **columns are slots.** A basis vector keeps its column (its *slot*) for as long as
   it is in the basis; a deleted one frees its slot for the next new one. The caller
@@ -26,17 +29,55 @@ buffer is finite: it starts at zero and is only overwritten by kernel values.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
 
 import numba
 import numpy as np
 
 from geoq._typing import FloatArray, IntArray
 from geoq.kernels.base import Kernel
+from geoq.kernels.stationary import SquaredExponential
 
-__all__ = ["NextStateCovariances"]
+__all__ = ["BasisCovariance", "NextStateCovariances", "StateFactor", "separable_factors"]
+
+
+class BasisCovariance(Protocol):
+    """What the cache needs of a kernel: ``to_basis(X [n, d'], basis [m, d]) -> [n, m]``."""
+
+    @property
+    def tracks_basis(self) -> bool: ...
+
+    def to_basis(self, X: FloatArray, basis: FloatArray) -> FloatArray: ...
+
 
 #: The row buffer grows to this multiple of the rows it must hold.
 GROWTH = 1.5
+
+
+@dataclass(frozen=True)
+class StateFactor:
+    """The state factor ``k_s`` of a product kernel, against full ``[s, a]`` basis vectors."""
+
+    kernel: SquaredExponential
+    n_state: int
+    tracks_basis: bool = False
+
+    def to_basis(self, X: FloatArray, basis: FloatArray) -> FloatArray:
+        """``k_s(X, basis[:, :n_state])`` for scaled states ``X`` ``[n, n_state]``."""
+        return self.kernel.to_basis(X, np.ascontiguousarray(basis[:, : self.n_state]))
+
+
+def separable_factors(
+    kernel: Kernel, n_state: int
+) -> tuple[StateFactor, SquaredExponential] | None:
+    """``k([s, a], [s', a']) = k_s(s, s') k_a(a, a')`` of a squared exponential over ``[s, a]``
+    (``n_state`` state dimensions first): the state factor (with the kernel's variance)
+    and the action factor (variance 1). ``None`` for any other kernel."""
+    if not isinstance(kernel, SquaredExponential) or kernel.se_parameters() is None:
+        return None
+    state = kernel.restricted(slice(0, n_state), variance=kernel.variance)
+    return StateFactor(state, n_state), kernel.restricted(slice(n_state, None))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -99,7 +140,7 @@ class NextStateCovariances:
 
     def get(
         self,
-        kernel: Kernel,
+        kernel: BasisCovariance,
         candidate_inputs: Callable[[FloatArray], FloatArray],
         next_states: FloatArray,
         first: int,

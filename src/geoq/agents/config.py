@@ -124,10 +124,11 @@ class GPQConfig:
     window is forgotten: where nothing else was seen the value returns to the
     optimistic prior and the agent goes back to explore (the mountain car's greedy
     return wavered after 6,500 steps with 5,000; docs/design-notes.md). The agent
-    keeps the covariances of ``window x n_candidates`` next-state pairs with the basis
-    between phases: up to ``1.5 x 8 window n_candidates max_bv`` bytes (1 GB at the
-    swing-up's defaults; ``window + replay_budget`` rows with graph replay, whose
-    imagined next states take the rows after the stored ones)."""
+    keeps the covariances of the ``window`` next states with the basis between phases
+    (the squared exponential's state factor; the action factor is formed per phase):
+    up to ``1.5 x 8 window max_bv`` bytes (48 MB at the swing-up's defaults;
+    ``window + replay_budget`` rows with graph replay, whose imagined next states take
+    the rows after the stored ones)."""
     replay: Replay = "uniform"
     """``uniform``: each phase re-bootstraps every stored transition (fitted-Q sweeps,
     all transitions alike); ``none``: no replay, the targets stay those computed

@@ -17,10 +17,24 @@ candidate actions, and ``B = sigma0^2 I + V V^T``::
     mu = B^{-1} V y,        Q(s'_i, a'_k) = (K' R^{-1} mu)_{ik}
 
 so with ``M = R^{-1} B^{-1} V`` [m, N] formed once per phase a sweep is two
-matrix-vector products (``K'`` is never whitened: that would cost O(N K m^2)),
-and most sweeps use only each transition's few best candidates (see
-``n_active``): hundreds of sweeps cost about one refit. Sweeps stop when no target
-moves by more than ``tol`` (in target units) or after ``max_sweeps``.
+matrix-vector products (``K'`` is never whitened: that would cost O(N K m^2)).
+Sweeps stop when no target moves by more than ``tol`` (in target units) or after
+``max_sweeps``.
+
+Most sweeps use only each transition's few best candidates (``n_active``), so
+hundreds of sweeps cost about one refit. ``K'`` comes in one of two forms
+(:data:`CandidateCovariances`):
+
+* :class:`DenseCandidates`, the matrix itself (the graph kernels).
+* :class:`SeparableCandidates`, for a kernel that is a product of a state factor and
+  an action factor (the squared exponential: ``exp(-|x - x'|^2 / 2)`` over
+  ``x = [s, a]`` splits into ``exp(-|s - s'|^2 / 2) exp(-|a - a'|^2 / 2)``):
+  ``K'[(i, k), j] = k_s(s'_i, s_j) k_a(a_k, a_j)``, so ``Q(s'_i, a_k) = (K_s
+  diag(w) K_a^T)_{ik}``: a full sweep is an ``[N, S] x [S, K]`` matrix product
+  over the ``K`` times smaller ``K_s`` [N, S] (with ``K_a`` [K, S]), 10x faster than
+  the dense ``[N K, S]`` mat-vec (0.54 against 5.7 ms at N = 1,000, K = 21,
+  S = 256, one thread); the pruned sweeps in between take ``K_s[i] . (w * K_a[k])``
+  for the best candidates ``k`` of each transition (:class:`SeparableBest`).
 
 Targets are in *standardised* units ``z = (y - y_mean) / y_scale``; the
 rewards are standardised with the same affine map, so
@@ -30,13 +44,112 @@ rewards are standardised with the same affine map, so
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeAlias
 
+import numba
 import numpy as np
 import scipy.linalg
 
 from geoq._typing import FloatArray, IntArray
 
-__all__ = ["FittedQResult", "fitted_q_sweeps"]
+__all__ = [
+    "CandidateCovariances",
+    "DenseCandidates",
+    "FittedQResult",
+    "SeparableBest",
+    "SeparableCandidates",
+    "fitted_q_sweeps",
+]
+
+
+@dataclass(frozen=True)
+class DenseCandidates:
+    """``k([s'_i, a_k], BV)`` as one matrix ``[N K, S]``, row-major over ``(i, k)``."""
+
+    matrix: FloatArray
+    n_candidates: int
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.matrix.shape[1])
+
+    def q(self, weights: FloatArray) -> FloatArray:
+        """``K' weights`` as ``[N, K]`` (``weights`` ``[S]``)."""
+        return (self.matrix @ weights).reshape(-1, self.n_candidates)
+
+    def restrict(self, top: IntArray) -> DenseCandidates:
+        """The rows of candidates ``top`` ``[N, n]`` of each transition (one flat gather, so
+        the mat-vec of :meth:`q` gives each row the bits of the full one)."""
+        N, n = top.shape
+        rows = np.arange(N)[:, None] * self.n_candidates + top
+        return DenseCandidates(self.matrix.take(rows.ravel(), axis=0), n)
+
+
+@dataclass(frozen=True)
+class SeparableCandidates:
+    """``k([s'_i, a_k], BV_j) = state[i, j] * action[k, j]`` (a product kernel).
+
+    Attributes
+    ----------
+    state : ``k_s(s'_i, BV_j)`` ``[N, S]`` (the kernel's variance included).
+    action : ``k_a(a_k, BV_j)`` ``[K, S]``.
+    """
+
+    state: FloatArray
+    action: FloatArray
+
+    @property
+    def n_candidates(self) -> int:
+        return int(self.action.shape[0])
+
+    @property
+    def n_columns(self) -> int:
+        return int(self.state.shape[1])
+
+    def q(self, weights: FloatArray) -> FloatArray:
+        """``Q`` ``[N, K]``: ``state diag(weights) action^T``, one matrix product."""
+        return self.state @ (weights[:, None] * self.action.T)
+
+    def restrict(self, top: IntArray) -> SeparableBest:
+        """The candidates ``top`` ``[N, n]`` of each transition only."""
+        return SeparableBest(self.state, self.action, np.ascontiguousarray(top, dtype=np.intp))
+
+
+@dataclass(frozen=True)
+class SeparableBest:
+    """:class:`SeparableCandidates` restricted to candidates ``top[i]`` ``[N, n]`` of each
+    transition: ``q(w)[i, c] = sum_j state[i, j] w_j action[top[i, c], j]``, compiled,
+    without forming the ``[N n, S]`` rows (a fresh array per full sweep cost 1.6-9 ms at
+    N = 1,000; the loop costs about 0.3 ms)."""
+
+    state: FloatArray
+    action: FloatArray
+    top: IntArray
+
+    def q(self, weights: FloatArray) -> FloatArray:
+        """``Q`` ``[N, n]`` of the kept candidates."""
+        return _best_q(self.state, self.action * weights, self.top)
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
+def _best_q(
+    state: FloatArray, weighted_action: FloatArray, top: IntArray
+) -> FloatArray:  # pragma: no cover - compiled
+    """``out[i, c] = state[i] . weighted_action[top[i, c]]`` (``reassoc``: a vectorised sum)."""
+    N, n = top.shape
+    out = np.empty((N, n))
+    for i in range(N):
+        for c in range(n):
+            row = weighted_action[top[i, c]]
+            acc = 0.0
+            for j in range(state.shape[1]):
+                acc += state[i, j] * row[j]
+            out[i, c] = acc
+    return out
+
+
+#: The covariances of next states x candidates with the basis, in either form.
+CandidateCovariances: TypeAlias = DenseCandidates | SeparableCandidates
 
 
 @dataclass(frozen=True)
@@ -57,7 +170,7 @@ class FittedQResult:
 
 def fitted_q_sweeps(
     V: FloatArray,
-    K_next: FloatArray,
+    K_next: FloatArray | CandidateCovariances,
     R: FloatArray,
     noise: float,
     rewards: FloatArray,
@@ -70,7 +183,7 @@ def fitted_q_sweeps(
     max_sweeps: int,
     tol: float,
     bounds: tuple[float, float] = (-np.inf, np.inf),
-    n_active: int = 3,
+    n_active: int | None = 3,
     refresh_every: int = 10,
     slots: IntArray | None = None,
 ) -> FittedQResult:
@@ -79,10 +192,11 @@ def fitted_q_sweeps(
     Parameters
     ----------
     V : whitened features of the stored inputs, ``R^{-T} K_BX`` ``[m, N]``.
-    K_next : covariances of the next states x candidates with the basis
-        ``[N * K, S]`` (row-major over ``(transition, candidate)``), basis vector
-        ``j`` in column ``slots[j]``; the other ``S - m`` columns must be finite and
-        get zero weight (:class:`~geoq.agents._covariance_cache.NextStateCovariances`).
+    K_next : covariances of the next states x candidates with the basis: a
+        :data:`CandidateCovariances`, or the dense ``[N * K, S]`` matrix (row-major
+        over ``(transition, candidate)``); basis vector ``j`` in column
+        ``slots[j]``, the other ``S - m`` columns must be finite and get zero weight
+        (:class:`~geoq.agents._covariance_cache.NextStateCovariances`).
     R : upper Cholesky factor of ``K_BV`` ``[m, m]``.
     noise : observation-noise variance ``sigma0^2`` (standardised units).
     rewards, continues : ``[N]``; ``continues = 1 - terminated`` (a truncation
@@ -101,40 +215,41 @@ def fitted_q_sweeps(
         full one). A full sweep runs every ``refresh_every`` sweeps and whenever a
         sweep changes no target by more than ``tol``; only a full sweep can end
         the iteration, so the fixed point is the one of the max over all candidates.
+        ``None``: every sweep is a full one.
     slots : the column of ``K_next`` of each basis vector ``[m]`` (default: ``0..m-1``).
     """
     m, N = V.shape
-    K = K_next.shape[0] // max(N, 1)
+    if isinstance(K_next, np.ndarray):
+        K_next = DenseCandidates(K_next, K_next.shape[0] // max(N, 1))
+    K, n_columns = K_next.n_candidates, K_next.n_columns
     B = noise * np.eye(m) + V @ V.T  # [m, m]
     factor = scipy.linalg.cho_factor(B, lower=True, check_finite=False)
     # Pre-applied solves: weights = R^{-1} B^{-1} V z, so a sweep is two mat-vecs.
     M_basis = scipy.linalg.solve_triangular(
         R, scipy.linalg.cho_solve(factor, V, check_finite=False), check_finite=False
     )  # [m, N]
-    if slots is None and K_next.shape[1] == m:
+    if slots is None and n_columns == m:
         M = M_basis
     else:  # rows in K_next's column order, zero where no basis vector sits
-        M = np.zeros((K_next.shape[1], N))
+        M = np.zeros((n_columns, N))
         M[np.arange(m) if slots is None else slots] = M_basis
-    n_active = min(max(int(n_active), 1), K)
-    first_row = np.arange(N)[:, None] * K  # [N, 1]
+    n_best = K if n_active is None else min(max(int(n_active), 1), K)
     y = np.array(targets0, dtype=np.float64)
     change = np.inf
     sweeps = since_full = 0
-    K_active: FloatArray | None = None
+    active: DenseCandidates | SeparableBest | None = None
     full = True
     while sweeps < max_sweeps:
         weights = M @ ((y - y_mean) / y_scale)  # [m], K_BV^{-1} f_BV
-        if full or K_active is None:
-            q_all = (K_next @ weights).reshape(N, K)
-            top = np.argpartition(q_all, K - n_active, axis=1)[:, K - n_active :]
-            # [N n_active, S]: the rows of the best candidates now (one flat gather; the
-            # flat mat-vec below gives each row the bits of the full one above)
-            K_active = K_next.take((first_row + top).ravel(), axis=0)
+        if full or active is None:
+            q_all = K_next.q(weights)  # [N, K]
+            if n_best < K:  # the best candidates now
+                top = np.argpartition(q_all, K - n_best, axis=1)[:, K - n_best :]
+                active = K_next.restrict(top)
             q_next = q_all.max(axis=1)
             since_full = 0
         else:
-            q_next = (K_active @ weights).reshape(N, n_active).max(axis=1)
+            q_next = active.q(weights).max(axis=1)
             since_full += 1
         y_new = np.clip(rewards + gamma * continues * (y_mean + y_scale * q_next), *bounds)
         change = float(np.max(np.abs(y_new - y))) if N else 0.0
@@ -142,5 +257,5 @@ def fitted_q_sweeps(
         sweeps += 1
         if change <= tol and full:
             break  # converged under the max over *every* candidate
-        full = change <= tol or since_full + 1 >= refresh_every
+        full = active is None or change <= tol or since_full + 1 >= refresh_every
     return FittedQResult(targets=y, sweeps=sweeps, max_change=change)

@@ -58,12 +58,17 @@ from gymnasium import spaces
 
 from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray, IntArray
-from geoq.agents._covariance_cache import NextStateCovariances
+from geoq.agents._covariance_cache import NextStateCovariances, separable_factors
 from geoq.agents._persist import load_agent, save_agent
 from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer
 from geoq.agents.config import REPLAYS, GPQConfig, check_int, default_max_bv
-from geoq.agents.fitted_q import fitted_q_sweeps
+from geoq.agents.fitted_q import (
+    CandidateCovariances,
+    DenseCandidates,
+    SeparableCandidates,
+    fitted_q_sweeps,
+)
 from geoq.agents.graph_replay import imagine_transitions
 from geoq.gp import SparseOnlineGP
 from geoq.gp.evidence import fit_squared_exponential
@@ -556,7 +561,7 @@ class GPQAgent:
         Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
         bv = gp.basis_vectors
         V = scipy.linalg.solve_triangular(Rf, gp.kernel.to_basis(X, bv).T, trans="T")  # [m, N]
-        K_next, slots = self._next_state_covariances(S2, N, bv)  # [N' K, S], [m]
+        K_next, slots = self._next_state_covariances(S2, N, bv)
         result = fitted_q_sweeps(
             V, K_next, Rf, c.noise, R, 1.0 - term.astype(np.float64), c.gamma, y0,
             y_mean=self.y_mean, y_scale=self.y_scale, max_sweeps=c.max_sweeps,
@@ -575,30 +580,42 @@ class GPQAgent:
 
     def _next_state_covariances(
         self, S2: FloatArray, n_stored: int, bv: FloatArray
-    ) -> tuple[FloatArray, IntArray]:
-        """``k([s'_i, a_k], BV)`` ``[len(S2) K, S]`` with basis vector ``j`` in column
-        ``slots[j]``, and ``slots`` ``[m]``. The first ``n_stored`` rows are the stored
-        transitions (kept from phase to phase where the kernel allows,
-        :class:`NextStateCovariances`), the rest imagined ones (computed)."""
-        kernel = self.gp.kernel
-        if kernel.tracks_basis:
-            return kernel.to_basis(self._candidate_inputs(S2), bv), np.arange(bv.shape[0])
-        return self._next_covariances.get(
-            kernel, self._candidate_inputs, S2[:n_stored], len(self.buffer) - n_stored, bv,
-            self.candidates.shape[0], scratch_states=S2[n_stored:] if len(S2) > n_stored else None,
+    ) -> tuple[CandidateCovariances, IntArray]:
+        """``k([s'_i, a_k], BV)`` for the next states ``S2`` x candidates, basis vector ``j``
+        in column ``slots[j]``, and ``slots`` ``[m]``. The first ``n_stored`` next states
+        are the stored transitions', kept from phase to phase where the kernel allows
+        (:class:`NextStateCovariances`; only their state factor, the squared exponential
+        being a product of a state and an action factor), the rest imagined ones
+        (computed)."""
+        kernel, n_cand = self.gp.kernel, self.candidates.shape[0]
+        factors = None if kernel.tracks_basis else separable_factors(kernel, self.obs_dim)
+        if factors is None:
+            dense = kernel.to_basis(self._candidate_inputs(S2), bv)
+            return DenseCandidates(dense, n_cand), np.arange(bv.shape[0])
+        state, action = factors
+        scale = np.asarray(self.scaling.scale, dtype=np.float64)
+        d_s = self.obs_dim
+        K_state, slots = self._next_covariances.get(
+            state, lambda X: X / scale[:d_s], S2[:n_stored], len(self.buffer) - n_stored, bv,
+            1, scratch_states=S2[n_stored:] if len(S2) > n_stored else None,
         )  # fmt: skip
+        K_action = np.zeros((n_cand, K_state.shape[1]))
+        K_action[:, slots] = action.to_basis(
+            self.candidates / scale[d_s:], np.ascontiguousarray(bv[:, d_s:])
+        )
+        return SeparableCandidates(K_state, K_action), slots
 
     def _stored_next_q(self, S2: FloatArray) -> FloatArray:
         """Posterior mean of ``Q`` ``[N, K]`` at the stored next states ``S2`` (the last
         ``N`` transitions) x candidates: :meth:`q_mean` up to rounding, but from the kept
-        covariances (one mat-vec, no kernel evaluation) where the kernel allows."""
+        covariances (no kernel evaluation) where the kernel allows."""
         gp = self.gp
         if gp.kernel.tracks_basis:
             return self.q_mean(S2)
         K_next, slots = self._next_state_covariances(S2, len(S2), gp.basis_vectors)
-        weights = np.zeros(K_next.shape[1])
+        weights = np.zeros(K_next.n_columns)
         weights[slots] = gp.alpha
-        return self.y_mean + self.y_scale * (K_next @ weights).reshape(len(S2), -1)
+        return self.y_mean + self.y_scale * K_next.q(weights)
 
     def _add_imagined(
         self,

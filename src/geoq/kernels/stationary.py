@@ -114,6 +114,20 @@ class SquaredExponential(GaussianOfDistance):
         assert isinstance(self.distance, Euclidean)
         return self.distance.period
 
+    def restricted(self, dims: slice, variance: float = 1.0) -> SquaredExponential:
+        """The same kernel on input dimensions ``dims`` only, with prior variance ``variance``.
+
+        The kernel is a product over dimensions, so it is the product of its restrictions
+        to complementary sets of dimensions whose variances multiply to its own (up to
+        rounding: ``exp(a) exp(b)`` for ``exp(a + b)``).
+        """
+        ls = self.lengthscale
+        return SquaredExponential(
+            lengthscale=ls if np.ndim(ls) == 0 else np.asarray(ls)[dims],
+            variance=variance,
+            period=None if self.period is None else self.period[dims],
+        )
+
     def se_parameters(self) -> SEParameters | None:
         """``(lengthscale, period, variance)``, unless a subclass changed what the kernel
         computes (then the GP must call it)."""

@@ -82,6 +82,31 @@ def test_refined_maximiser_against_brute_force_on_a_dense_grid(
     assert f(np.array([a]))[0] >= f(grid).max() - m3 * h**3 - 1e-12
 
 
+def _refine_reference(row: np.ndarray, grid: np.ndarray) -> float:
+    """One row by hand: first argmax, parabola vertex only if interior and concave."""
+    i = int(np.argmax(row))
+    if not 0 < i < len(row) - 1:
+        return float(grid[i])
+    left, mid, right = row[i - 1], row[i], row[i + 1]
+    curvature = left - 2.0 * mid + right
+    offset = min(max(0.5 * (left - right) / curvature, -0.5), 0.5) if curvature < 0 else 0.0
+    return float(grid[i] + offset * (grid[1] - grid[0]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), K=st.integers(2, 25), n=st.integers(1, 6))
+def test_refinement_of_each_row_matches_a_per_row_reference(seed: int, K: int, n: int) -> None:
+    """Every row of a batch, bit for bit: ties (rounded scores), maxima at either end,
+    flat and convex neighbourhoods."""
+    rng = np.random.default_rng(seed)
+    scores = np.round(rng.normal(size=(n, K)), 1)  # ties are common
+    scores[0, rng.integers(K)] = scores[0].max() + 1.0  # a clear maximum anywhere
+    grid = np.linspace(-2.0, 3.0, K)
+    got = refine_on_grid(scores, grid)
+    assert got.shape == (n,)
+    assert got.tolist() == [_refine_reference(row, grid) for row in scores]
+
+
 def test_scores() -> None:
     mean, std = np.array([[1.0, 2.0, 0.5]]), np.array([[1.0, 0.0, 3.0]])
     np.testing.assert_array_equal(acquisition_scores(mean, std, "greedy"), mean)

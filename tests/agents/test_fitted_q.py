@@ -5,9 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from geoq.agents.fitted_q import DenseCandidates, SeparableCandidates, fitted_q_sweeps
-from geoq.gp import SparseOnlineGP
+from geoq.agents.fitted_q import (
+    DenseCandidates,
+    SeparableCandidates,
+    _best_candidates,
+    _bootstrap,
+    fitted_q_sweeps,
+)
+from geoq.gp import CONFIG, SparseOnlineGP
+from geoq.gp._resync import ProjectedSystem, projected_system
 from geoq.kernels import SquaredExponential
 
 N_STATES, GAMMA = 11, 0.9
@@ -36,18 +45,21 @@ def _value_iteration() -> np.ndarray:
     return q
 
 
-def _features(kernel: SquaredExponential, X: np.ndarray, Xn: np.ndarray, bv: np.ndarray):
+def _features(
+    kernel: SquaredExponential, X: np.ndarray, Xn: np.ndarray, bv: np.ndarray, noise: float
+) -> tuple[ProjectedSystem, np.ndarray]:
+    """The projected system of ``X`` on ``bv`` (factor of ``K_BV`` by plain Cholesky) and the
+    next-state covariances."""
     R = scipy.linalg.cholesky(kernel(bv), lower=False)
-    V = scipy.linalg.solve_triangular(R, kernel(X, bv).T, trans="T")
-    return V, kernel(Xn, bv), R
+    return projected_system(kernel, X, bv, R, noise, CONFIG), kernel(Xn, bv)
 
 
 def test_interpolating_basis_gives_the_optimal_q_of_a_deterministic_chain() -> None:
     X, Xn, rewards, continues, _ = _chain()
     kernel = SquaredExponential(lengthscale=np.array([0.03, 0.5]))
-    V, Kn, R = _features(kernel, X, Xn, X)
+    system, Kn = _features(kernel, X, Xn, X, 1e-10)
     res = fitted_q_sweeps(
-        V, Kn, R, 1e-10, rewards, continues, GAMMA, np.zeros(len(rewards)),
+        system, Kn, rewards, continues, GAMMA, np.zeros(len(rewards)),
         y_mean=-5.0, y_scale=3.0, max_sweeps=500, tol=1e-10,
     )  # fmt: skip
     np.testing.assert_allclose(res.targets, _value_iteration(), atol=1e-6)
@@ -66,9 +78,9 @@ def test_one_sweep_equals_bootstrapping_from_the_gp_refit() -> None:
     gp.refit(X, (y0 - y_mean) / y_scale)
     q_next = y_mean + y_scale * gp.predict(Xn).reshape(len(X), 2).max(axis=1)
     expected = rewards + GAMMA * continues * q_next
-    V, Kn, R = _features(kernel, X, Xn, bv)
+    system, Kn = _features(kernel, X, Xn, bv, 0.05)
     res = fitted_q_sweeps(
-        V, Kn, R, 0.05, rewards, continues, GAMMA, y0,
+        system, Kn, rewards, continues, GAMMA, y0,
         y_mean=y_mean, y_scale=y_scale, max_sweeps=1, tol=0.0,
     )  # fmt: skip
     assert res.sweeps == 1
@@ -78,9 +90,9 @@ def test_one_sweep_equals_bootstrapping_from_the_gp_refit() -> None:
 def test_bounds_clip_every_target() -> None:
     X, Xn, rewards, continues, _ = _chain()
     kernel = SquaredExponential(lengthscale=np.array([0.03, 0.5]))
-    V, Kn, R = _features(kernel, X, Xn, X)
+    system, Kn = _features(kernel, X, Xn, X, 1e-10)
     res = fitted_q_sweeps(
-        V, Kn, R, 1e-10, rewards, continues, GAMMA, np.zeros(len(rewards)),
+        system, Kn, rewards, continues, GAMMA, np.zeros(len(rewards)),
         y_mean=0.0, y_scale=1.0, max_sweeps=500, tol=1e-10, bounds=(-3.0, -1.0),
     )  # fmt: skip
     assert res.targets.min() >= -3.0 and res.targets.max() <= -1.0
@@ -93,9 +105,9 @@ def test_active_candidate_sweeps_reach_the_fixed_point_of_full_sweeps() -> None:
     kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
     rng = np.random.default_rng(1)
     gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, rng.normal(size=len(X)))
-    V, Kn, R = _features(kernel, X, Xn, gp.basis_vectors)
+    system, Kn = _features(kernel, X, Xn, gp.basis_vectors, 0.01)
     common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=2_000, tol=1e-11)
-    args = (V, Kn, R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
+    args = (system, Kn, rewards, continues, GAMMA, np.zeros(len(rewards)))
     full = fitted_q_sweeps(*args, **common, n_active=2, refresh_every=1)  # type: ignore[arg-type]
     pruned = fitted_q_sweeps(*args, **common, n_active=1, refresh_every=7)  # type: ignore[arg-type]
     assert full.sweeps < 2_000 and pruned.sweeps < 2_000
@@ -108,16 +120,16 @@ def test_slot_columns_give_the_plain_layouts_targets() -> None:
     X, Xn, rewards, continues, _ = _chain()
     kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
     gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, -np.arange(len(X), dtype=float))
-    V, Kn, R = _features(kernel, X, Xn, gp.basis_vectors)
+    system, Kn = _features(kernel, X, Xn, gp.basis_vectors, 0.01)
     m = Kn.shape[1]
     rng = np.random.default_rng(3)
     slots = rng.permutation(m + 5)[:m]
     wide = rng.uniform(-1e3, 1e3, size=(Kn.shape[0], m + 5))  # finite junk where no BV sits
     wide[:, slots] = Kn
     common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=300, tol=1e-11)
-    args = (R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
-    plain = fitted_q_sweeps(V, Kn, *args, **common)  # type: ignore[arg-type]
-    slotted = fitted_q_sweeps(V, wide, *args, **common, slots=slots)  # type: ignore[arg-type]
+    args = (rewards, continues, GAMMA, np.zeros(len(rewards)))
+    plain = fitted_q_sweeps(system, Kn, *args, **common)  # type: ignore[arg-type]
+    slotted = fitted_q_sweeps(system, wide, *args, **common, slots=slots)  # type: ignore[arg-type]
     assert slotted.sweeps == plain.sweeps
     np.testing.assert_allclose(slotted.targets, plain.targets, rtol=0, atol=1e-10)
 
@@ -154,10 +166,39 @@ def test_separable_sweeps_are_the_dense_sweeps(n_active: int | None) -> None:
     kernel = SquaredExponential(lengthscale=np.array([0.15, 0.8]))
     gp = SparseOnlineGP(kernel, noise=0.01, max_bv=12).fit(X, -np.arange(len(X), dtype=float))
     bv = gp.basis_vectors
-    V, Kn, R = _features(kernel, X, Xn, bv)
+    system, Kn = _features(kernel, X, Xn, bv, 0.01)
     common = dict(y_mean=-4.0, y_scale=2.0, max_sweeps=300, tol=1e-11, n_active=n_active)
-    args = (R, 0.01, rewards, continues, GAMMA, np.zeros(len(rewards)))
-    dense = fitted_q_sweeps(V, Kn, *args, **common, refresh_every=7)  # type: ignore[arg-type]
-    sep = fitted_q_sweeps(V, _separable(kernel, Xn, bv), *args, **common, refresh_every=7)  # type: ignore[arg-type]
+    args = (rewards, continues, GAMMA, np.zeros(len(rewards)))
+    dense = fitted_q_sweeps(system, Kn, *args, **common, refresh_every=7)  # type: ignore[arg-type]
+    sep = fitted_q_sweeps(system, _separable(kernel, Xn, bv), *args, **common, refresh_every=7)  # type: ignore[arg-type]
     assert sep.sweeps == dense.sweeps < 300
     np.testing.assert_allclose(sep.targets, dense.targets, rtol=0, atol=1e-10)
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), K=st.integers(1, 25), n=st.integers(1, 5))
+def test_best_candidates_are_the_n_largest_of_each_row(seed: int, K: int, n: int) -> None:
+    """Oracle: a full sort. With ties (rounded values) the set may differ, its values not."""
+    n = min(n, K)
+    rng = np.random.default_rng(seed)
+    q = np.round(rng.normal(size=(30, K)), 1)
+    top = _best_candidates(q, n)
+    assert top.shape == (30, n)
+    for row, cols in zip(q, top, strict=True):
+        assert len(set(cols.tolist())) == n
+        np.testing.assert_array_equal(np.sort(row[cols]), np.sort(row)[K - n :])
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), K=st.integers(1, 6))
+def test_bootstrap_is_the_numpy_expression_bit_for_bit(seed: int, K: int) -> None:
+    rng = np.random.default_rng(seed)
+    N = 40
+    q, y = rng.normal(size=(N, K)), rng.normal(size=N) * 5
+    rewards, continues = rng.normal(size=N), (rng.random(N) < 0.8).astype(float)
+    y_mean, y_scale, gamma, lo, hi = -1.3, 2.7, 0.95, -6.0, 4.0
+    expected = np.clip(rewards + gamma * continues * (y_mean + y_scale * q.max(axis=1)), lo, hi)
+    y_new = np.empty(N)
+    change = _bootstrap(q, rewards, gamma * continues, y_mean, y_scale, lo, hi, y, y_new)
+    assert y_new.tobytes() == expected.tobytes()
+    assert change == np.max(np.abs(expected - y))

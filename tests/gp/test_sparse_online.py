@@ -68,6 +68,46 @@ def test_refit_equals_dtc_posterior(seed: int, lengthscale: object) -> None:
     np.testing.assert_allclose(gp.C, C, rtol=1e-7, atol=1e-8)
 
 
+def test_projected_system_serves_many_targets_as_refit_does() -> None:
+    """One system, several target vectors: each installed posterior is ``refit``'s bit for
+    bit, and its mean weights are the textbook DTC ``alpha``."""
+    X, y = _data(5, 120)
+    kern = SquaredExponential([0.7, 1.1], variance=1.3)
+    noise = 0.05
+    gp = SparseOnlineGP(kern, noise=noise, max_bv=15, tol=1e-3).fit(X, y)
+    twin = SparseOnlineGP(kern, noise=noise, max_bv=15, tol=1e-3).fit(X, y)
+    system = gp.projected_system(X)
+    BV = gp.basis_vectors
+    Xs = np.random.default_rng(1).uniform(-2.5, 2.5, (40, 2))
+    for k, targets in enumerate((y, -2.0 * y + 1.0, np.cos(X[:, 0]))):
+        alpha, _ = dtc_posterior(kern(BV), kern(BV, X), targets, noise)
+        np.testing.assert_allclose(system.mean_weights(targets), alpha, rtol=1e-8, atol=1e-9)
+        gp.refit_projected(system, targets)
+        twin.refit(X, targets)
+        pairs = zip(gp.predict(Xs, return_std=True), twin.predict(Xs, return_std=True), strict=True)
+        for a, b in pairs:
+            assert np.array_equal(a, b), k
+    head = system.head(70)  # the first 70 inputs, without a kernel evaluation
+    direct = gp.projected_system(X[:70])
+    np.testing.assert_allclose(head.B_inv, direct.B_inv, rtol=1e-12, atol=1e-12)
+    assert head.n_inputs == 70
+
+
+def test_a_stale_projected_system_is_refused() -> None:
+    X, y = _data(6, 60)
+    gp = SparseOnlineGP(SquaredExponential(0.6), noise=0.05, max_bv=10, tol=1e-3).fit(X, y)
+    system = gp.projected_system(X)
+    with pytest.raises(ValueError, match="60"):
+        gp.refit_projected(system, y[:-1])
+    gp.update(np.array([2.5, -2.5]), 0.3)  # a new basis vector
+    before = gp.predict(X)
+    with pytest.raises(ValueError, match="projected_system again"):
+        gp.refit_projected(system, y)
+    assert np.array_equal(gp.predict(X), before)
+    with pytest.raises(ValueError, match="basis vector"):
+        SparseOnlineGP(SquaredExponential(0.6), noise=0.05, max_bv=10).projected_system(X)
+
+
 def test_online_pass_on_a_fixed_basis_is_dtc() -> None:
     """Once the BV set stops changing, every point is projected: the DTC update."""
     X, y = _data(3, 200)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numba
 import numpy as np
 import scipy.stats
 
@@ -95,27 +96,40 @@ def acquisition_scores(
 def refine_on_grid(scores: FloatArray, grid: FloatArray) -> FloatArray:
     """Maximiser of ``scores`` [n, K] over an evenly spaced 1-D ``grid`` [K], refined.
 
-    For each row, the best grid index ``i`` and, when it is interior and the
-    parabola through ``(g_{i-1}, g_i, g_{i+1})`` is concave, that parabola's
-    vertex (it lies within half a grid step of ``g_i``; its interpolated score is
-    at least the grid maximum). Returns actions ``[n]``.
+    For each row, the best grid index ``i`` (the first, on ties) and, when it is
+    interior and the parabola through ``(g_{i-1}, g_i, g_{i+1})`` is concave, that
+    parabola's vertex (it lies within half a grid step of ``g_i``; its interpolated
+    score is at least the grid maximum). Scores must be finite. Returns actions ``[n]``.
     """
-    K = scores.shape[1]
-    i = np.argmax(scores, axis=1)
-    best = grid[i].astype(np.float64)
-    inner = (i > 0) & (i < K - 1)
-    if not np.any(inner) or K < 3:
-        return best
-    rows = np.flatnonzero(inner)
-    ii = i[rows]
-    left, mid, right = scores[rows, ii - 1], scores[rows, ii], scores[rows, ii + 1]
-    curvature = left - 2.0 * mid + right  # < 0 for a concave parabola
-    h = grid[1] - grid[0]
-    ok = curvature < 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        offset = np.where(ok, 0.5 * (left - right) / np.where(ok, curvature, 1.0), 0.0)
-    best[rows] = grid[ii] + np.clip(offset, -0.5, 0.5) * h
-    return best
+    scores = np.ascontiguousarray(scores, dtype=np.float64)
+    out = np.empty(scores.shape[0])
+    _refine_rows(scores, np.ascontiguousarray(grid, dtype=np.float64), out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _refine_rows(
+    scores: FloatArray, grid: FloatArray, out: FloatArray
+) -> None:  # pragma: no cover - compiled
+    """:func:`refine_on_grid` row by row (one compiled call: an agent step asks for one
+    row, and numpy's per-call overhead was most of its cost)."""
+    n, K = scores.shape
+    h = grid[1] - grid[0] if K > 1 else 0.0
+    for r in range(n):
+        row = scores[r]
+        i = 0
+        for k in range(1, K):
+            if row[k] > row[i]:
+                i = k
+        if 0 < i < K - 1:
+            left, mid, right = row[i - 1], row[i], row[i + 1]
+            curvature = left - 2.0 * mid + right  # < 0 for a concave parabola
+            offset = 0.0
+            if curvature < 0.0:
+                offset = min(max(0.5 * (left - right) / curvature, -0.5), 0.5)
+            out[r] = grid[i] + offset * h
+        else:
+            out[r] = grid[i]
 
 
 def choose_actions(

@@ -48,9 +48,9 @@ from typing import TypeAlias
 
 import numba
 import numpy as np
-import scipy.linalg
 
 from geoq._typing import FloatArray, IntArray
+from geoq.gp._resync import ProjectedSystem
 
 __all__ = [
     "CandidateCovariances",
@@ -169,10 +169,8 @@ class FittedQResult:
 
 
 def fitted_q_sweeps(
-    V: FloatArray,
+    system: ProjectedSystem,
     K_next: FloatArray | CandidateCovariances,
-    R: FloatArray,
-    noise: float,
     rewards: FloatArray,
     continues: FloatArray,
     gamma: float,
@@ -191,14 +189,13 @@ def fitted_q_sweeps(
 
     Parameters
     ----------
-    V : whitened features of the stored inputs, ``R^{-T} K_BX`` ``[m, N]``.
+    system : the projected-process system of the transitions' inputs ``[s, a]`` on the
+        basis (:meth:`geoq.gp.SparseOnlineGP.projected_system`).
     K_next : covariances of the next states x candidates with the basis: a
         :data:`CandidateCovariances`, or the dense ``[N * K, S]`` matrix (row-major
         over ``(transition, candidate)``); basis vector ``j`` in column
         ``slots[j]``, the other ``S - m`` columns must be finite and get zero weight
         (:class:`~geoq.agents._covariance_cache.NextStateCovariances`).
-    R : upper Cholesky factor of ``K_BV`` ``[m, m]``.
-    noise : observation-noise variance ``sigma0^2`` (standardised units).
     rewards, continues : ``[N]``; ``continues = 1 - terminated`` (a truncation
         by a time limit is not terminal: it bootstraps).
     gamma : discount factor in ``[0, 1)``.
@@ -218,44 +215,92 @@ def fitted_q_sweeps(
         ``None``: every sweep is a full one.
     slots : the column of ``K_next`` of each basis vector ``[m]`` (default: ``0..m-1``).
     """
-    m, N = V.shape
+    m, N = system.V.shape
     if isinstance(K_next, np.ndarray):
         K_next = DenseCandidates(K_next, K_next.shape[0] // max(N, 1))
     K, n_columns = K_next.n_candidates, K_next.n_columns
-    B = noise * np.eye(m) + V @ V.T  # [m, m]
-    factor = scipy.linalg.cho_factor(B, lower=True, check_finite=False)
-    # Pre-applied solves: weights = R^{-1} B^{-1} V z, so a sweep is two mat-vecs.
-    M_basis = scipy.linalg.solve_triangular(
-        R, scipy.linalg.cho_solve(factor, V, check_finite=False), check_finite=False
-    )  # [m, N]
-    if slots is None and n_columns == m:
-        M = M_basis
-    else:  # rows in K_next's column order, zero where no basis vector sits
-        M = np.zeros((n_columns, N))
-        M[np.arange(m) if slots is None else slots] = M_basis
+    # Weights in K_next's column order, zero where no basis vector sits.
+    columns = np.arange(m) if slots is None else np.asarray(slots)
+    weights = np.zeros(n_columns)
     n_best = K if n_active is None else min(max(int(n_active), 1), K)
+    gamma_continues = gamma * np.asarray(continues, dtype=np.float64)
+    rewards = np.ascontiguousarray(rewards, dtype=np.float64)
+    lo, hi = (float(b) for b in bounds)
     y = np.array(targets0, dtype=np.float64)
+    y_new = np.empty_like(y)
     change = np.inf
     sweeps = since_full = 0
     active: DenseCandidates | SeparableBest | None = None
     full = True
     while sweeps < max_sweeps:
-        weights = M @ ((y - y_mean) / y_scale)  # [m], K_BV^{-1} f_BV
+        weights[columns] = system.mean_weights((y - y_mean) / y_scale)  # K_BV^{-1} f_BV
         if full or active is None:
-            q_all = K_next.q(weights)  # [N, K]
+            q = K_next.q(weights)  # [N, K]
             if n_best < K:  # the best candidates now
-                top = np.argpartition(q_all, K - n_best, axis=1)[:, K - n_best :]
-                active = K_next.restrict(top)
-            q_next = q_all.max(axis=1)
+                active = K_next.restrict(_best_candidates(q, n_best))
             since_full = 0
         else:
-            q_next = active.q(weights).max(axis=1)
+            q = active.q(weights)  # [N, n_best]
             since_full += 1
-        y_new = np.clip(rewards + gamma * continues * (y_mean + y_scale * q_next), *bounds)
-        change = float(np.max(np.abs(y_new - y))) if N else 0.0
-        y = y_new
+        change = _bootstrap(
+            q, rewards, gamma_continues, y_mean, y_scale, lo, hi, y, y_new
+        )  # fmt: skip
+        y, y_new = y_new, y
         sweeps += 1
         if change <= tol and full:
             break  # converged under the max over *every* candidate
         full = active is None or change <= tol or since_full + 1 >= refresh_every
     return FittedQResult(targets=y, sweeps=sweeps, max_change=change)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bootstrap(
+    q: FloatArray,
+    rewards: FloatArray,
+    gamma_continues: FloatArray,
+    y_mean: float,
+    y_scale: float,
+    lo: float,
+    hi: float,
+    y: FloatArray,
+    y_new: FloatArray,
+) -> float:  # pragma: no cover - compiled
+    """``y_new = clip(r + gamma c (y_mean + y_scale max_k q[:, k]), lo, hi)``; returns
+    ``max |y_new - y|`` (0 for no transition). The operations of the numpy expression in
+    its order, so the same bits, in one pass instead of eight (``q`` finite)."""
+    change = 0.0
+    for i in range(q.shape[0]):
+        best = q[i, 0]
+        for k in range(1, q.shape[1]):
+            if q[i, k] > best:
+                best = q[i, k]
+        v = min(max(rewards[i] + gamma_continues[i] * (y_mean + y_scale * best), lo), hi)
+        y_new[i] = v
+        d = abs(v - y[i])
+        if d > change:
+            change = d
+    return change
+
+
+@numba.njit(cache=True, nogil=True)
+def _best_candidates(q: FloatArray, n: int) -> IntArray:  # pragma: no cover - compiled
+    """The columns of the ``n`` largest entries of each row of ``q`` ``[N, K]``, ``[N, n]``
+    in no particular order (ties broken by position): ``np.argpartition``'s set, without
+    its per-row sort machinery (0.28 ms at N = 900, K = 21, n = 3)."""
+    N, K = q.shape
+    top = np.empty((N, n), dtype=np.intp)
+    for i in range(N):
+        for c in range(n):  # start from the first n columns, smallest tracked
+            top[i, c] = c
+        low = 0
+        for c in range(1, n):
+            if q[i, top[i, c]] < q[i, top[i, low]]:
+                low = c
+        for k in range(n, K):
+            if q[i, k] > q[i, top[i, low]]:
+                top[i, low] = k
+                low = 0
+                for c in range(1, n):
+                    if q[i, top[i, c]] < q[i, top[i, low]]:
+                        low = c
+    return top

@@ -53,7 +53,6 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-import scipy.linalg
 from gymnasium import spaces
 
 from geoq._threads import single_blas_thread
@@ -547,23 +546,20 @@ class GPQAgent:
         if c.replay == "graph" and gp.n_bv > 0:
             S, A, R, S2, term, y0 = self._add_imagined(S, A, R, S2, term, y0, bounds)
             X = self.inputs(S, A)
-        if gp.kernel.tracks_basis:  # K_BV follows a graph: factor the current one afresh
-            gp.refit(X, (y0 - self.y_mean) / self.y_scale)
-        m = gp.n_bv
-        if m == 0:
+        if gp.n_bv == 0:
             return 0
+        # V = R^{-T} K_BX and B^{-1} on a fresh factor of the current K_BV (a graph kernel's
+        # follows its graph), formed once: every sweep and the final refit use them.
+        system = gp.projected_system(X)
         if c.replay == "none":  # no re-bootstrapping: refit to the online targets
             self.y_mean, self.y_scale = self._standardisation(y0, bounds)
-            gp.refit(X, (y0 - self.y_mean) / self.y_scale)
+            gp.refit_projected(system, (y0 - self.y_mean) / self.y_scale)
             self.fitted_q_sweeps.append(0)
             self.fitted_q_residuals.append(0.0)
             return 0
-        Rf = gp.cholesky_factor  # [m, m] upper, K_BV = R^T R
-        bv = gp.basis_vectors
-        V = scipy.linalg.solve_triangular(Rf, gp.kernel.to_basis(X, bv).T, trans="T")  # [m, N]
-        K_next, slots = self._next_state_covariances(S2, N, bv)
+        K_next, slots = self._next_state_covariances(S2, N, gp.basis_vectors)
         result = fitted_q_sweeps(
-            V, K_next, Rf, c.noise, R, 1.0 - term.astype(np.float64), c.gamma, y0,
+            system, K_next, R, 1.0 - term.astype(np.float64), c.gamma, y0,
             y_mean=self.y_mean, y_scale=self.y_scale, max_sweeps=c.max_sweeps,
             tol=c.sweep_tol * self.y_scale, bounds=bounds, slots=slots,
         )  # fmt: skip
@@ -573,7 +569,8 @@ class GPQAgent:
         # The posterior the agent acts with is fit to the stored transitions only: imagined
         # ones (replay="graph") shape their targets, not the uncertainty that drives
         # exploration (docs/design-notes.md).
-        gp.refit(X[:N], (y[:N] - self.y_mean) / self.y_scale)
+        stored = system if system.n_inputs == N else system.head(N)
+        gp.refit_projected(stored, (y[:N] - self.y_mean) / self.y_scale)
         self.fitted_q_sweeps.append(result.sweeps)
         self.fitted_q_residuals.append(result.max_change)
         return result.sweeps

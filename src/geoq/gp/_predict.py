@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg import lapack
 
 from geoq._typing import FloatArray
 from geoq.gp.diagnostics import Counters
@@ -29,6 +30,7 @@ __all__ = [
     "predict_chunked",
     "predict_factored",
     "rescale_features",
+    "solve_upper_transposed",
 ]
 
 #: Test points per kernel evaluation (bounds the [chunk, m] kernel matrix).
@@ -57,7 +59,7 @@ def predict_chunked(
     for lo in range(0, X.shape[0], PREDICT_CHUNK):
         Xc = X[lo : lo + PREDICT_CHUNK]
         K = np.asarray(kernel.to_basis(Xc, bv), dtype=np.float64)  # [n_c, m]
-        V = scipy.linalg.solve_triangular(R, K.T, trans="T", check_finite=False)  # [m, n_c]
+        V = solve_upper_transposed(R, K.T)  # [m, n_c]
         prior = np.asarray(kernel.diag(Xc), dtype=np.float64)  # [n_c]
         vv = np.einsum("ij,ij->j", V, V)  # [n_c]
         if repaired:
@@ -66,6 +68,19 @@ def predict_chunked(
         if std is not None:
             var = (prior - vv) + np.einsum("ij,ij->j", S @ V, V)
             _store_std(var, prior, std[lo : lo + len(Xc)], counts)
+
+
+def solve_upper_transposed(R: FloatArray, B: FloatArray) -> FloatArray:
+    """``R^{-T} B`` for an upper triangular ``R`` [m, m] and ``B`` [m, n]: LAPACK's
+    ``dtrtrs`` on the lower triangular ``R^T``, the bits of
+    ``scipy.linalg.solve_triangular(R, B, trans="T")`` without its wrapper (a third of
+    the solve's time at an agent step's 21 x 200). ``R`` may be a strided view."""
+    V, info = lapack.dtrtrs(R.T, B, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(
+            f"the factor of K_BV is singular (zero pivot {info}): refit or rebuild the GP"
+        )
+    return np.asarray(V)
 
 
 def rescale_features(

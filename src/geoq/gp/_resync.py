@@ -11,7 +11,9 @@ give it a new factor:
   posterior of ``f_BV`` (mean ``R^T mu``, covariance ``R^T S R``) is unchanged (the
   resync of a basis-tracking kernel, whose ``K_BV`` changes as its graph grows).
 * :func:`dtc_posterior`: the projected-process (DTC) posterior on a fixed basis set
-  (the refit; TR eq. 3.17-3.19 applied to every point at once).
+  (the refit; TR eq. 3.17-3.19 applied to every point at once), from the
+  :class:`ProjectedSystem` of its inputs (:func:`projected_system`), which fitted-Q
+  reuses for many targets.
 
 Repairs are returned as counts; the GP adds them to its counters.
 """
@@ -19,6 +21,7 @@ Repairs are returned as counts; the GP adds them to its counters.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg
@@ -27,7 +30,14 @@ from geoq._typing import FloatArray
 from geoq.gp.numerics import NumericsConfig, project_whitened_covariance, robust_cholesky
 from geoq.kernels.base import Kernel
 
-__all__ = ["FactorMemo", "dtc_posterior", "factor_gram", "reanchor"]
+__all__ = [
+    "FactorMemo",
+    "ProjectedSystem",
+    "dtc_posterior",
+    "factor_gram",
+    "projected_system",
+    "reanchor",
+]
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,86 @@ def reanchor(
     return Tm @ mu, S_new, projected
 
 
+@dataclass(frozen=True)
+class ProjectedSystem:
+    """The projected-process (DTC) system of inputs ``X`` on a fixed basis: a refit
+    without its targets, for many target vectors on the same inputs (fitted-Q).
+
+    With ``K_BV = R^T R``, ``V = R^{-T} K_BX`` and ``B = sigma0^2 I + V V^T``, the
+    posterior of targets ``y`` is ``mu = B^{-1} V y``, ``S = sigma0^2 B^{-1}``
+    (:meth:`posterior`) and its mean weights ``alpha = R^{-1} mu``
+    (:meth:`mean_weights`: ``mean(x) = k(x, BV) alpha``).
+
+    Attributes
+    ----------
+    basis : the basis vectors ``[m, d]`` it was formed on (a copy).
+    R : upper Cholesky factor of ``K_BV`` ``[m, m]`` (read-only).
+    V : whitened features ``[m, N]``.
+    B_inv : ``B^{-1}`` ``[m, m]``.
+    noise : ``sigma0^2``.
+    jitter_events, eig_clips : repairs made factorising ``B``.
+    """
+
+    basis: FloatArray
+    R: FloatArray
+    V: FloatArray
+    B_inv: FloatArray
+    noise: float
+    config: NumericsConfig
+    jitter_events: int
+    eig_clips: int
+
+    @property
+    def n_inputs(self) -> int:
+        """``N``, the number of inputs."""
+        return int(self.V.shape[1])
+
+    def posterior(self, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The whitened posterior ``(mu [m], S [m, m])`` of targets ``y`` ``[N]``."""
+        mu = self.B_inv @ (self.V @ y)
+        S = self.noise * self.B_inv
+        return mu, 0.5 * (S + S.T)
+
+    @cached_property
+    def _weights_map(self) -> FloatArray:
+        """``R^{-1} B^{-1}`` ``[m, m]`` (formed on first use)."""
+        return scipy.linalg.solve_triangular(self.R, self.B_inv, check_finite=False)
+
+    def mean_weights(self, y: FloatArray) -> FloatArray:
+        """``alpha = R^{-1} B^{-1} V y`` ``[m]`` of targets ``y`` ``[N]``: two
+        mat-vecs (``[m, N]``, then ``[m, m]``) once the first call formed ``R^{-1} B^{-1}``."""
+        return self._weights_map @ (self.V @ y)
+
+    def head(self, n: int) -> ProjectedSystem:
+        """The system of the first ``n`` inputs (no kernel evaluation, no solve with ``R``)."""
+        return _system(self.basis, self.R, self.V[:, :n], self.noise, self.config)
+
+
+def projected_system(
+    kernel: Kernel,
+    X: FloatArray,
+    basis: FloatArray,
+    R: FloatArray,
+    noise: float,
+    config: NumericsConfig,
+) -> ProjectedSystem:
+    """The :class:`ProjectedSystem` of ``X`` ``[N, d]`` on ``basis`` ``[m, d]`` with the
+    factor ``R`` of its ``K_BV``."""
+    Kbx = np.asarray(kernel.to_basis(X, basis), dtype=np.float64).T  # [m, N]
+    V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
+    return _system(np.array(basis, dtype=np.float64), R, V, noise, config)
+
+
+def _system(
+    basis: FloatArray, R: FloatArray, V: FloatArray, noise: float, config: NumericsConfig
+) -> ProjectedSystem:
+    m = R.shape[0]
+    B = noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
+    LB, jit, clips = robust_cholesky(B, "DTC system matrix", config)
+    B_inv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
+    return ProjectedSystem(basis, R, V, B_inv, noise, config, jit, clips)
+
+
 def dtc_posterior(
     kernel: Kernel,
     X: FloatArray,
@@ -109,12 +199,6 @@ def dtc_posterior(
 
     Returns ``(mu, S, jitter_events, eig_clips)`` (the repairs of factorising ``B``).
     """
-    m = R.shape[0]
-    Kbx = np.asarray(kernel.to_basis(X, basis), dtype=np.float64).T  # [m, N]
-    V = scipy.linalg.solve_triangular(R, Kbx, trans="T", check_finite=False)  # [m, N]
-    B = noise * np.eye(m) + V @ V.T  # [m, m], eigenvalues >= sigma0^2
-    LB, jit, clips = robust_cholesky(B, "DTC system matrix", config)
-    Binv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
-    mu = Binv @ (V @ y)
-    S = noise * Binv
-    return mu, 0.5 * (S + S.T), jit, clips
+    system = projected_system(kernel, X, basis, R, noise, config)
+    mu, S = system.posterior(y)
+    return mu, S, system.jitter_events, system.eig_clips

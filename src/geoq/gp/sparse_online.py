@@ -78,7 +78,13 @@ from geoq._validation import (
 from geoq.gp._nb_delete import refresh_scores
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
 from geoq.gp._predict import FACTOR_ROUTE_MIN, predict_chunked, predict_factored
-from geoq.gp._resync import FactorMemo, dtc_posterior, factor_gram, reanchor
+from geoq.gp._resync import (
+    FactorMemo,
+    ProjectedSystem,
+    factor_gram,
+    projected_system,
+    reanchor,
+)
 from geoq.gp._step import N_WORK
 from geoq.gp._stream import stream
 from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
@@ -353,6 +359,13 @@ class SparseOnlineGP:
         self._counts.python["eig_clips"] += clips
         return R
 
+    def _current_factor(self) -> FloatArray:
+        """:meth:`_factor_gram` without counting its repairs (they were counted once)."""
+        R, _, _, self._factor_memo = factor_gram(
+            self.kernel, self._bv[: self._m], self.config, self._factor_memo
+        )
+        return R
+
     def _refresh_scores(self, record_drift: bool = True) -> None:
         """Recompute ``alpha = R^{-1} mu`` and ``diag(Q + C) = diag(R^{-1} S R^{-T})`` exactly.
 
@@ -412,17 +425,62 @@ class SparseOnlineGP:
         return self
 
     def _refit(self, Xa: FloatArray, ya: FloatArray) -> None:
-        m = self._m
-        if m == 0:
+        if self._m == 0:
             self._counts.python["refits"] += 1
             return
+        self._install(self._projected_system(Xa), ya)
+
+    @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
+    def projected_system(self, X: ArrayLike) -> ProjectedSystem:
+        """The projected-process system of inputs ``X`` [N, d] on the current BV set and
+        kernel: :meth:`refit` without its targets (:class:`~geoq.gp._resync.ProjectedSystem`:
+        ``V = R^{-T} K_BX``, ``B^{-1}``, the posterior and mean weights of any targets).
+
+        For many targets on the same inputs (fitted Q-iteration): form it once, then
+        :meth:`refit_projected` installs the posterior of the chosen targets, the same
+        bits as ``refit(X, y)``. Raises ``ValueError`` on an empty BV set.
+        """
+        Xa = self._check_X(X)
+        if self._m == 0:
+            raise ValueError("projected_system needs at least one basis vector; update first")
+        return self._projected_system(Xa)
+
+    def _projected_system(self, Xa: FloatArray) -> ProjectedSystem:
         R = self._factor_gram()  # [m, m] upper
-        mu, S, jit, clips = dtc_posterior(
-            self.kernel, Xa, ya, self._bv[:m], R, self.noise, self.config
-        )
-        self._counts.python["jitter_events"] += jit
-        self._counts.python["eig_clips"] += clips
-        self._R[:m, :m] = R
+        return projected_system(self.kernel, Xa, self._bv[: self._m], R, self.noise, self.config)
+
+    @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
+    def refit_projected(self, system: ProjectedSystem, y: ArrayLike) -> SparseOnlineGP:
+        """:meth:`refit` to targets ``y`` [N] of a system from :meth:`projected_system`.
+
+        The system must have been formed on this GP's current BV set and ``K_BV`` (no
+        update in between): otherwise ``ValueError``. Returns ``self``.
+        """
+        m = self._m
+        ya = as_targets(y, system.n_inputs)
+        if (
+            system.basis.shape != (m, self._bv.shape[1])
+            or not np.array_equal(system.basis, self._bv[:m])
+            or system.noise != self.noise
+            or system.config != self.config
+            or not np.array_equal(system.R, self._current_factor())
+        ):
+            raise ValueError(
+                "this projected system was formed on another basis set, K_BV or noise: "
+                "call projected_system again after the last update"
+            )
+        with self._all_or_nothing():
+            self._install(system, ya)
+        self._warn_once()
+        return self
+
+    def _install(self, system: ProjectedSystem, ya: FloatArray) -> None:
+        """The DTC posterior of ``ya`` on ``system`` becomes the GP's state."""
+        m = self._m
+        mu, S = system.posterior(ya)
+        self._counts.python["jitter_events"] += system.jitter_events
+        self._counts.python["eig_clips"] += system.eig_clips
+        self._R[:m, :m] = system.R
         self._mu[:m] = mu
         self._S[:m, :m] = S
         self._changes = 0
@@ -456,13 +514,14 @@ class SparseOnlineGP:
             return (np.zeros(n), np.sqrt(np.maximum(prior, 0.0))) if return_std else np.zeros(n)
         mean = np.empty(n)
         std = np.empty(n) if return_std else None
-        # Contiguous copies: LAPACK on strided views of the [cap, cap] buffers is slow.
-        R, S = np.ascontiguousarray(self._R[:m, :m]), np.ascontiguousarray(self._S[:m, :m])
+        R, S = self._R[:m, :m], self._S[:m, :m]  # strided views of the [cap, cap] buffers
         mu, bv = self._mu[:m], self._bv[:m]
         repaired = self._counts.features_repaired
         if n >= FACTOR_ROUTE_MIN * m and not repaired:
+            # Contiguous copies: LAPACK's O(m^3) set-up on strided views is slow.
+            R, S = np.ascontiguousarray(R), np.ascontiguousarray(S)
             predict_factored(self.kernel, Xa, R, S, mu, bv, mean, std, self._counts)
-        else:
+        else:  # a solve per chunk: copying the buffers would cost more than it saves
             predict_chunked(self.kernel, Xa, R, S, mu, bv, mean, std, repaired, self._counts)
         if std is None:
             return mean

@@ -160,6 +160,14 @@ def test_q_mean_is_the_mean_of_q_candidates_bit_for_bit(kernel: str) -> None:
         np.testing.assert_array_equal(q.view(np.uint64), mean.view(np.uint64))
 
 
+def test_candidate_inputs_are_the_public_inputs_bit_for_bit() -> None:
+    agent = _agent(max_bv=10)
+    states = np.random.default_rng(0).uniform(-3, 3, size=(5, agent.obs_dim))
+    K = agent.candidates.shape[0]
+    expected = agent.inputs(np.repeat(states, K, axis=0), np.tile(agent.candidates, (5, 1)))
+    assert agent._candidate_inputs(states).tobytes() == expected.tobytes()
+
+
 @pytest.mark.parametrize("kernel", ["euclidean", "resistance"])
 def test_stored_next_q_is_q_mean_at_the_stored_next_states(kernel: str) -> None:
     """Graph replay's TD priorities: from the kept covariances (squared exponential) or

@@ -257,9 +257,15 @@ class GPQAgent:
         return self.scaling.transform(np.hstack([states, actions]))
 
     def _candidate_inputs(self, states: FloatArray) -> FloatArray:
-        """Inputs ``[n K, d]`` of every state ``[n, d_s]`` paired with every candidate."""
-        K = self.candidates.shape[0]
-        return self.inputs(np.repeat(states, K, axis=0), np.tile(self.candidates, (len(states), 1)))
+        """Inputs ``[n K, d]`` of every state ``[n, d_s]`` (validated float64) paired with
+        every candidate: :meth:`inputs`' bits (each column divided by its scale), built
+        in place (an agent step's call)."""
+        n, K, d_s = states.shape[0], self.candidates.shape[0], self.obs_dim
+        scale = np.asarray(self.scaling.scale, dtype=np.float64)
+        X = np.empty((n * K, scale.shape[0]))
+        X[:, :d_s] = np.repeat(states / scale[:d_s], K, axis=0)
+        X[:, d_s:] = np.tile(self.candidates / scale[d_s:], (n, 1))
+        return X
 
     def q_candidates(self, states: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Posterior mean and std of ``Q`` ``[n, K]`` at every state x candidate (one GP call)."""

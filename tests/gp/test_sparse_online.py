@@ -91,6 +91,8 @@ def test_projected_system_serves_many_targets_as_refit_does() -> None:
     direct = gp.projected_system(X[:70])
     np.testing.assert_allclose(head.B_inv, direct.B_inv, rtol=1e-12, atol=1e-12)
     assert head.n_inputs == 70
+    with pytest.raises(ValueError, match="head"):
+        system.head(121)
 
 
 def test_a_stale_projected_system_is_refused() -> None:

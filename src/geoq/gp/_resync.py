@@ -10,10 +10,10 @@ give it a new factor:
 * :func:`reanchor`: the whitened posterior moved onto a new factor so that the
   posterior of ``f_BV`` (mean ``R^T mu``, covariance ``R^T S R``) is unchanged (the
   resync of a basis-tracking kernel, whose ``K_BV`` changes as its graph grows).
-* :func:`dtc_posterior`: the projected-process (DTC) posterior on a fixed basis set
-  (the refit; TR eq. 3.17-3.19 applied to every point at once), from the
-  :class:`ProjectedSystem` of its inputs (:func:`projected_system`), which fitted-Q
-  reuses for many targets.
+* :func:`projected_system`: the projected-process (DTC) system of inputs on a fixed
+  basis set, :class:`ProjectedSystem`, whose :meth:`~ProjectedSystem.posterior` of
+  any targets is the refit (TR eq. 3.17-3.19 applied to every point at once);
+  fitted-Q solves it for many targets.
 
 Repairs are returned as counts; the GP adds them to its counters.
 """
@@ -33,7 +33,6 @@ from geoq.kernels.base import Kernel
 __all__ = [
     "FactorMemo",
     "ProjectedSystem",
-    "dtc_posterior",
     "factor_gram",
     "projected_system",
     "reanchor",
@@ -118,6 +117,7 @@ class ProjectedSystem:
     V : whitened features ``[m, N]``.
     B_inv : ``B^{-1}`` ``[m, m]``.
     noise : ``sigma0^2``.
+    config : the numerics (jitter policy) ``B`` was factorised under.
     jitter_events, eig_clips : repairs made factorising ``B``.
     """
 
@@ -153,6 +153,8 @@ class ProjectedSystem:
 
     def head(self, n: int) -> ProjectedSystem:
         """The system of the first ``n`` inputs (no kernel evaluation, no solve with ``R``)."""
+        if not 0 <= n <= self.n_inputs:
+            raise ValueError(f"head({n}) of a system of {self.n_inputs} inputs")
         return _system(self.basis, self.R, self.V[:, :n], self.noise, self.config)
 
 
@@ -179,26 +181,3 @@ def _system(
     LB, jit, clips = robust_cholesky(B, "DTC system matrix", config)
     B_inv = scipy.linalg.cho_solve((LB, True), np.eye(m), check_finite=False)
     return ProjectedSystem(basis, R, V, B_inv, noise, config, jit, clips)
-
-
-def dtc_posterior(
-    kernel: Kernel,
-    X: FloatArray,
-    y: FloatArray,
-    basis: FloatArray,
-    R: FloatArray,
-    noise: float,
-    config: NumericsConfig,
-) -> tuple[FloatArray, FloatArray, int, int]:
-    """Projected-process (DTC) whitened posterior ``(mu [m], S [m, m])`` on a fixed basis.
-
-    With ``K_BV = L L^T`` (``L = R^T``), ``V = L^{-1} K_BX`` [m, N] and
-    ``B = sigma0^2 I + V V^T``::
-
-        mu = B^{-1} V y,    S = sigma0^2 B^{-1}
-
-    Returns ``(mu, S, jitter_events, eig_clips)`` (the repairs of factorising ``B``).
-    """
-    system = projected_system(kernel, X, basis, R, noise, config)
-    mu, S = system.posterior(y)
-    return mu, S, system.jitter_events, system.eig_clips

@@ -414,3 +414,24 @@ def test_online_predictions_use_the_repaired_features_until_a_refit(name, data):
         gp.refit(data.X, data.y)  # the DTC posterior of the raw features
         mean, std = gp.predict(X, return_std=True)
         np.testing.assert_allclose(mean, _brute_force_predict(gp, X, False)[:, 0], atol=1e-8)
+
+
+@pytest.mark.parametrize("name", ["nearest", "interpolated", "resistance"])
+def test_projected_system_refit_is_the_refit_on_a_graph(name, data):
+    """The fitted-Q route (one system, the posterior of chosen targets) on a kernel that
+    follows its basis: ``refit``'s posterior bit for bit, and the repaired features are
+    dropped as by ``refit``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        gp, _ = fit(KERNELS[name](False), data)
+        twin, _ = fit(KERNELS[name](False), data)
+        system = gp.projected_system(data.X)
+        gp.refit_projected(system, -data.y)
+        twin.refit(data.X, -data.y)
+        for a, b in zip(
+            gp.predict(data.X_test, True), twin.predict(data.X_test, True), strict=True
+        ):
+            assert a.tobytes() == b.tobytes()
+        gp.partial_fit(data.X_held_out, np.zeros(len(data.X_held_out)))
+        with pytest.raises(ValueError, match="projected_system again"):
+            gp.refit_projected(system, data.y)

@@ -50,7 +50,7 @@ import numba
 import numpy as np
 
 from geoq._typing import FloatArray, IntArray
-from geoq.gp._resync import ProjectedSystem
+from geoq.gp import ProjectedSystem
 
 __all__ = [
     "CandidateCovariances",

@@ -1,5 +1,6 @@
 """Gaussian processes: the sparse online GP (Csató & Opper 2002), the exact GP, numerics."""
 
+from geoq.gp._resync import ProjectedSystem
 from geoq.gp.exact import ExactGP
 from geoq.gp.numerics import CONFIG, NotPSDError, NumericalWarning, NumericsConfig, safe_cholesky
 from geoq.gp.sparse_online import OnlineDiagnostics, SparseOnlineGP
@@ -11,6 +12,7 @@ __all__ = [
     "NumericalWarning",
     "NumericsConfig",
     "OnlineDiagnostics",
+    "ProjectedSystem",
     "SparseOnlineGP",
     "safe_cholesky",
 ]

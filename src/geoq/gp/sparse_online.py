@@ -433,7 +433,7 @@ class SparseOnlineGP:
     @single_blas_thread  # small matrices: one BLAS thread (geoq._threads)
     def projected_system(self, X: ArrayLike) -> ProjectedSystem:
         """The projected-process system of inputs ``X`` [N, d] on the current BV set and
-        kernel: :meth:`refit` without its targets (:class:`~geoq.gp._resync.ProjectedSystem`:
+        kernel: :meth:`refit` without its targets (:class:`~geoq.gp.ProjectedSystem`:
         ``V = R^{-T} K_BX``, ``B^{-1}``, the posterior and mean weights of any targets).
 
         For many targets on the same inputs (fitted Q-iteration): form it once, then

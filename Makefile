@@ -3,22 +3,51 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+EXTRAS := test,bench,dev
+# The lock: exact versions of everything make install installs, one file per Python
+# (make lock writes it; pyproject.toml keeps the loose lower bounds for library users).
+PYVER  := $(shell $(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])')
+LOCK   := requirements/py$(PYVER).txt
 OUT    ?= results/demo
+comma  := ,
 # Worker processes of the reproduction's sweeps (results do not depend on it).
 JOBS   ?= 2
 
-.PHONY: install test demo lint bench reproduce-paper suite clean
+.PHONY: install test test-latest lock demo lint bench reproduce-paper suite clean
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(wildcard $(LOCK))
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test,bench,dev]"
+	@if [ -f $(LOCK) ]; then \
+		echo "installing the locked versions of $(LOCK)"; \
+		$(BIN)/python -m pip install --quiet -c $(LOCK) -e ".[$(EXTRAS)]"; \
+	else \
+		echo "no lock for Python $(PYVER) ($(LOCK)): installing the newest releases; make lock writes one"; \
+		$(BIN)/python -m pip install --quiet -e ".[$(EXTRAS)]"; \
+	fi
 	touch $(STAMP)
 
 test: install
 	$(BIN)/python -m pytest -q
+
+# Re-resolve the lock to the newest releases pyproject.toml allows (uv, in a venv of its own).
+lock:
+	$(PYTHON) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade "uv>=0.5"
+	.venv-lock/bin/uv pip compile pyproject.toml --upgrade --python-version $(PYVER) \
+		$(foreach e,$(subst $(comma), ,$(EXTRAS)),--extra $(e)) --no-emit-package geoq \
+		--custom-compile-command "make lock" --output-file $(LOCK)
+
+# The suite against the newest releases, in a fresh venv of its own: drift found on purpose.
+test-latest:
+	rm -rf .venv-latest
+	$(PYTHON) -m venv .venv-latest
+	.venv-latest/bin/python -m pip install --quiet --upgrade pip
+	.venv-latest/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[$(EXTRAS)]"
+	.venv-latest/bin/python -m pip list --format=freeze | grep -iE "^(numpy|scipy|numba|gymnasium|matplotlib)=="
+	.venv-latest/bin/python -m pytest -q -p no:cacheprovider
 
 demo: install
 	$(BIN)/geoq reproduce --out $(OUT) --scale quick --jobs $(JOBS)
@@ -38,4 +67,4 @@ bench: install
 	$(BIN)/python benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .venv-lock .venv-latest build src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

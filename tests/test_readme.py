@@ -20,3 +20,16 @@ def test_readme_examples_run_in_order(tmp_path: Path, monkeypatch: pytest.Monkey
     namespace: dict[str, object] = {}
     for block in BLOCKS:
         exec(compile(block, str(README), "exec"), namespace)
+
+
+def test_readme_names_the_locked_versions() -> None:
+    """The install section's "tested with" versions are the lock's pins."""
+    root = README.parent
+    text = README.read_text()
+    lock_name = re.search(r"the\s+lock\s+`(requirements/py[\d.]+\.txt)`", text)
+    assert lock_name, "README names no lock file"
+    pins = dict(re.findall(r"^([a-z0-9_-]+)==([^\s;]+)", (root / lock_name[1]).read_text(), re.M))
+    named = re.findall(r"\b(numpy|scipy|numba|gymnasium|matplotlib) (\d[\w.]*\d)", text)
+    assert {name for name, _ in named} == {"numpy", "scipy", "numba", "gymnasium", "matplotlib"}
+    for name, version in named:
+        assert pins[name] == version, f"README says {name} {version}; the lock pins {pins[name]}"

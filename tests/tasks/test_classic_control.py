@@ -1,4 +1,10 @@
-"""The vectorised Gymnasium twins against the real envs, step by step, bit for bit."""
+"""The vectorised Gymnasium twins against the real envs, step by step, bit for bit.
+
+The twins follow Gymnasium 1.x's ``step`` code (checked with the versions in the lock file,
+``requirements/``) under NumPy 2's promotion rules (NEP 50): a Python float times the
+env's float32 scalar torque is float32 arithmetic. NumPy 1.x computed it in float64, so
+there the bits differ (relative 1e-7) and the bit-for-bit tests are skipped.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +23,15 @@ from geoq.tasks.classic_control import (
     sample_mountain_car_starts,
 )
 
+NEP50 = pytest.mark.skipif(
+    np.lib.NumpyVersion(np.__version__) < "2.0.0",
+    reason="the twins follow NumPy 2's promotion of float32 scalars (NEP 50); NumPy "
+    + np.__version__
+    + " computes the env's float32 terms in float64",
+)
 
+
+@NEP50
 @pytest.mark.parametrize("episode", range(12))
 def test_mountain_car_step_equals_env_step_bit_for_bit(episode: int) -> None:
     rng = np.random.default_rng(episode)
@@ -39,6 +53,7 @@ def test_mountain_car_step_equals_env_step_bit_for_bit(episode: int) -> None:
             break
 
 
+@NEP50
 @pytest.mark.parametrize("episode", range(8))
 def test_gym_pendulum_step_equals_env_step_bit_for_bit(episode: int) -> None:
     rng = np.random.default_rng(100 + episode)

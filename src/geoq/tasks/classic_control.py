@@ -1,10 +1,15 @@
 """Gymnasium's ``MountainCarContinuous-v0`` and ``Pendulum-v1`` as pure, vectorised functions.
 
 Each step function follows ``gymnasium/envs/classic_control/continuous_mountain_car.py``
-and ``pendulum.py`` (Gymnasium 1.x) operation by operation, with NumPy's
-promotion rules (NEP 50) giving the same precision as the env's scalar code, so
-``tests/tasks/test_classic_control.py`` finds them equal to ``env.step``, bit for
-bit, step after step. They take the env's *internal* state (what
+and ``pendulum.py`` (Gymnasium 1.x) operation by operation, with NumPy 2's
+promotion rules (NEP 50) giving the same precision as the env's scalar code (the
+pendulum's torque terms are float32 arithmetic, as ``0.001 * u**2`` is on the
+float32 torque) and the env's scalar squares computed by the C library's ``pow``,
+as scalars are (:mod:`geoq.tasks._libm`: NumPy's array power differs in the last
+bit, by CPU), so ``tests/tasks/test_classic_control.py`` finds them equal to
+``env.step``, bit for bit, step after step. Under NumPy 1.x's value-based casting
+the env computes those float32 terms in float64: the twins then differ from it
+in the last bits (relative 1e-7 at most). They take the env's *internal* state (what
 ``env.unwrapped.state`` holds), not its float32 observation:
 
 * **MountainCarContinuous-v0**: state ``[position, velocity]``; the env stores it
@@ -34,6 +39,7 @@ from geoq._typing import ArrayLike, FloatArray
 from geoq._validation import check_nonnegative
 from geoq.envs.pendulum import PendulumParams
 from geoq.policies import SwingUpController
+from geoq.tasks._libm import libm_square
 
 __all__ = [
     "GYM_PENDULUM_DT",
@@ -119,7 +125,8 @@ def mountain_car_step(
     velocity = np.where((position == MOUNTAIN_CAR_MIN_POSITION) & (velocity < 0), 0, velocity)
     position, velocity = np.broadcast_arrays(position, velocity)
     terminated = (position >= MOUNTAIN_CAR_GOAL_POSITION) & (velocity >= 0)
-    reward = np.where(terminated, 100.0, 0.0) - _square(action.astype(np.float64)) * 0.1
+    # math.pow(action[0], 2) * 0.1 on the float32 action, in double precision.
+    reward = np.where(terminated, 100.0, 0.0) - libm_square(action.astype(np.float64)) * 0.1
     next_states = np.stack([position, velocity], axis=-1).astype(np.float32).astype(np.float64)
     return next_states, np.broadcast_to(reward, terminated.shape).copy(), terminated
 
@@ -131,12 +138,6 @@ def sample_mountain_car_starts(rng: np.random.Generator, n: int) -> FloatArray:
     """
     position = rng.uniform(low=-0.6, high=-0.4, size=n).astype(np.float32).astype(np.float64)
     return np.stack([position, np.zeros(n)], axis=-1)
-
-
-def _square(x: np.ndarray) -> np.ndarray:
-    """``x ** 2`` as the env's *scalar* code computes it (C ``pow``, which NumPy's array
-    ``x ** 2`` replaces by ``x * x``: they differ in the last bit for about 1e-3 of inputs)."""
-    return np.power(x, np.full_like(x, 2.0))
 
 
 def _angle_normalize(x: FloatArray) -> FloatArray:
@@ -162,7 +163,9 @@ def gym_pendulum_step(
     th, thdot = s[..., 0], s[..., 1]
     u = np.clip(_first_action(actions), -GYM_PENDULUM_MAX_TORQUE, GYM_PENDULUM_MAX_TORQUE)
     g, m, length, dt = GYM_PENDULUM_G, 1.0, 1.0, GYM_PENDULUM_DT
-    costs = _square(_angle_normalize(th)) + 0.1 * _square(thdot) + 0.001 * _square(u)
+    # u is float32: 0.001 * u**2 and 3 * u are float32 arithmetic (powf, then a float32
+    # product), as on the env's float32 scalar torque; the rest is float64.
+    costs = libm_square(_angle_normalize(th)) + 0.1 * libm_square(thdot) + 0.001 * libm_square(u)
     newthdot = thdot + (3 * g / (2 * length) * np.sin(th) + 3.0 / (m * length**2) * u) * dt
     newthdot = np.clip(newthdot, -GYM_PENDULUM_MAX_SPEED, GYM_PENDULUM_MAX_SPEED)
     newth = th + newthdot * dt

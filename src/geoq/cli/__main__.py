@@ -1,0 +1,5 @@
+"""``python -m geoq.cli``: the ``geoq`` command."""
+
+from geoq.cli import main
+
+main()

@@ -1,0 +1,167 @@
+"""``geoq train``, ``geoq evaluate`` and ``geoq bench-control``: the control agent."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from geoq.cli._common import (
+    CONFIG_OPTION,
+    Backend,
+    KernelChoice,
+    agent_config,
+    capped_jobs,
+    check_choices,
+    check_out,
+    reported,
+)
+
+__all__ = ["bench_control", "evaluate", "train"]
+
+
+def train(
+    env: Annotated[str, typer.Option("--env", help="Gymnasium id of the task.")] = (
+        "geoq/PendulumSwingUp-v0"
+    ),
+    kernel: Annotated[
+        KernelChoice, typer.Option("--kernel", help="Kernel of the GP Q-function.")
+    ] = KernelChoice.euclidean,
+    timesteps: Annotated[
+        int, typer.Option("--timesteps", min=1, help="Environment steps to learn for.")
+    ] = 2_000,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of every random choice.")] = 0,
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            file_okay=False,
+            help="Output directory: learning_curve.csv/.png, agent.npz, config.json.",
+        ),
+    ] = Path("results/train"),
+    config: Annotated[Path | None, CONFIG_OPTION] = None,
+    progress: Annotated[
+        bool, typer.Option("--progress/--no-progress", help="Show a progress bar on stderr.")
+    ] = True,
+) -> None:
+    """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
+    check_out(out)
+    overrides = agent_config(config)
+    with reported("train", "nothing was written"):
+        from geoq.experiments.control import train as run_train
+
+        agent = run_train(
+            env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
+            **overrides,
+        )  # fmt: skip
+    last = agent.episodes[-1] if agent.episodes else None
+    tail = f"; last episode return {last.ret:.1f}" if last else ""
+    typer.echo(f"geoq train: {agent.num_timesteps} steps, {len(agent.episodes)} episodes{tail}; "
+               f"results in {out}")  # fmt: skip
+
+
+def evaluate(
+    agent_path: Annotated[
+        Path,
+        typer.Argument(metavar="AGENT", exists=True, dir_okay=False, help="A saved agent.npz."),
+    ],
+    episodes: Annotated[
+        int, typer.Option("--episodes", min=1, help="Number of evaluation episodes.")
+    ] = 20,
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the episodes' resets.")] = 0,
+    env: Annotated[
+        str | None, typer.Option("--env", help="Gymnasium id (default: the agent's own).")
+    ] = None,
+) -> None:
+    """Evaluate a saved agent: mean return with its 95% interval, and the success rate."""
+    with reported("evaluate", "nothing was written"):
+        from geoq.agents import GPQAgent
+        from geoq.experiments.control import evaluate_agent
+
+        agent = GPQAgent.load(agent_path, env=env)
+        result = evaluate_agent(agent, env, episodes, seed)
+    typer.echo(result.summary())
+
+
+def bench_control(
+    out: Annotated[Path, typer.Option("--out", file_okay=False, help="Output directory.")] = Path(
+        "results/control"
+    ),
+    env: Annotated[str, typer.Option("--env", help="Gymnasium id of the task.")] = (
+        "geoq/PendulumSwingUp-v0"
+    ),
+    kernels: Annotated[
+        list[KernelChoice] | None,
+        typer.Option("--kernel", help="Kernel(s) to compare (repeat the option)."),
+    ] = None,
+    explorations: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--exploration",
+            help="Exploration mode(s) to compare: ucb, thompson, gaussian (repeat the option).",
+        ),
+    ] = None,
+    replays: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--replay",
+            help="Replay mode(s) to compare: none, uniform, graph (repeat the option).",
+        ),
+    ] = None,
+    baselines: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--baseline",
+            help=(
+                "Also run a baseline with its default settings, same seeds, budgets and "
+                "evaluation: sac (Stable-Baselines3; needs pip install 'geoq[baselines]', "
+                "which pulls torch)."
+            ),
+        ),
+    ] = None,
+    seeds: Annotated[int, typer.Option("--seeds", min=1, help="Seeds per setting.")] = 10,
+    timesteps: Annotated[int, typer.Option("--timesteps", min=1, help="Steps per run.")] = 3_000,
+    eval_every: Annotated[
+        int, typer.Option("--eval-every", min=1, help="Steps between evaluations.")
+    ] = 250,
+    eval_episodes: Annotated[
+        int, typer.Option("--eval-episodes", min=1, help="Episodes per evaluation.")
+    ] = 20,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")] = 1,
+    backend: Annotated[
+        Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
+    ] = Backend.loky,
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
+    ] = None,
+    config: Annotated[Path | None, CONFIG_OPTION] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
+) -> None:
+    """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
+    from geoq.agents.acquisition import EXPLORATION_MODES
+    from geoq.agents.config import REPLAYS
+
+    if scheduler is not None and backend is not Backend.dask:
+        raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
+    from geoq.experiments.sac_baseline import BASELINES
+
+    check_choices(explorations, EXPLORATION_MODES, "--exploration")
+    check_choices(replays, REPLAYS, "--replay")
+    check_choices(baselines, BASELINES, "--baseline")
+    check_out(out)
+    jobs = capped_jobs(jobs, scheduler)
+    base = agent_config(config)
+    configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
+    if replays:
+        configs = [dict(c, replay=r) for c in configs for r in replays]
+    with reported("bench-control", "finished cells are kept; rerun to resume"):
+        from geoq.experiments.control import run_control_benchmark
+
+        run_control_benchmark(
+            out, env_id=env, kernels=[k.value for k in (kernels or [KernelChoice.euclidean])],
+            seeds=seeds, timesteps=timesteps, eval_every=eval_every,
+            eval_episodes=eval_episodes, configs=configs, baselines=baselines or [],
+            jobs=jobs, backend=backend.value, scheduler=scheduler, progress=progress,
+        )  # fmt: skip
+    typer.echo(f"geoq bench-control: done; {out / 'CONTROL.md'}")

@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
+from geoq.envs._render import check_render_mode, pendulum_frame, warn_no_render_mode
 from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.pendulum import (
     START_NOISE,
@@ -97,8 +98,17 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
     the last 50 states reached (Stable-Baselines3's convention). The hand-made
     controller of `geoq.policies` succeeds in every episode by this measure.
 
+    ## Rendering
+
+    `render_mode="rgb_array"`: `render()` returns the current state as a
+    400 x 400 x 3 uint8 image (numpy drawing, no display needed): the rod (red)
+    from the pivot at the angle `theta` (`0` up, positive clockwise), the
+    success zone `|theta| < 0.3` (light green) and the last torque as a bar
+    under the pivot (right = positive). `render_fps` is 20, the env's `1 / dt`.
+
     ## Arguments
 
+    - `render_mode`: `None` or `"rgb_array"`.
     - `params`: a `geoq.envs.PendulumParams` (defaults above); the spaces follow
       its `max_torque` and `max_speed`.
     - `start_noise`: half-width of the uniform start noise (default `0.05`, at most
@@ -117,7 +127,7 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
     * v0: Initial version.
     """
 
-    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 20}  # noqa: RUF012
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012
 
     def __init__(
         self,
@@ -125,8 +135,7 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         params: PendulumParams | None = None,
         start_noise: float = START_NOISE,
     ) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; use None")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         if not np.isfinite(start_noise) or start_noise < 0:
             raise ValueError(f"start_noise must be finite and >= 0, got {start_noise!r}")
         self.render_mode = render_mode
@@ -146,6 +155,7 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         self.state: FloatArray | None = None
         self._steps = 0
         self._upright_run = 0  # consecutive steps ending with |theta| < SUCCESS_ANGLE
+        self._last_torque = 0.0  # shown by render()
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -159,6 +169,7 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
             self.state = self._check_state(start)
         self._steps = 0
         self._upright_run = 0
+        self._last_torque = 0.0
         return self.state.copy(), {}
 
     def step(self, action: Any) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
@@ -178,6 +189,8 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         if not np.isfinite(u).all():
             raise ValueError(f"action {u!r} is not finite; pass a torque in [-5, 5]")
         next_state, reward = pendulum_step(self.state, u.reshape(()), self.params)
+        self._last_torque = float(np.clip(u.reshape(()), -self.params.max_torque,
+                                          self.params.max_torque))  # fmt: skip
         self.state = next_state
         self._steps += 1
         upright = abs(float(next_state[0])) < SUCCESS_ANGLE
@@ -186,6 +199,20 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
         if self._steps == self._horizon():
             info["is_success"] = self._upright_run >= SUCCESS_WINDOW
         return next_state.copy(), float(reward), False, False, info
+
+    def render(self) -> np.ndarray | None:
+        """The current state as an ``[400, 400, 3]`` uint8 image (``render_mode="rgb_array"``).
+
+        Without a render mode: a warning (Gymnasium's convention) and ``None``.
+        """
+        if self.render_mode is None:
+            warn_no_render_mode(self)
+            return None
+        if self.state is None:
+            raise RuntimeError("call reset() before render()")
+        return pendulum_frame(
+            float(self.state[0]), self._last_torque, self.params.max_torque, SUCCESS_ANGLE
+        )
 
     def _horizon(self) -> int:
         return episode_horizon(self.spec, _DEFAULT_HORIZON)

@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
+from geoq.envs._render import TwoRoomsPainter, check_render_mode, warn_no_render_mode
 from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.two_rooms import (
     TWO_ROOMS_START_NOISE,
@@ -86,8 +87,16 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
     `max_episode_steps`, 200 when made directly) if the goal was not reached;
     it is absent from other steps.
 
+    ## Rendering
+
+    `render_mode="rgb_array"`: `render()` returns the unit square as a
+    400 x 400 x 3 uint8 image (numpy drawing, no display needed): the wall
+    (dark) with its door, the goal disc (light green), the episode's path so far
+    (light blue) and the point (blue). `render_fps` is 20.
+
     ## Arguments
 
+    - `render_mode`: `None` or `"rgb_array"`.
     - `start_noise`: half-width of the uniform start noise (default `0.05`, at
       most `0.2` so that every start is in the left room).
 
@@ -104,13 +113,12 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
     * v0: Initial version.
     """
 
-    metadata: dict[str, Any] = {"render_modes": [], "render_fps": 20}  # noqa: RUF012
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 20}  # noqa: RUF012
 
     def __init__(
         self, render_mode: str | None = None, start_noise: float = TWO_ROOMS_START_NOISE
     ) -> None:
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; use None")
+        check_render_mode(render_mode, self.metadata["render_modes"])
         if not np.isfinite(start_noise) or not 0.0 <= start_noise <= 0.2:
             raise ValueError(
                 f"start_noise must be in [0, 0.2] (starts stay in the left room), "
@@ -122,6 +130,8 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
         self.observation_space = spaces.Box(low=0.0, high=1.0, shape=(2,), dtype=np.float64)
         self.state: FloatArray | None = None
         self._steps = 0
+        self._path: list[FloatArray] = []  # this episode's states, shown by render()
+        self._painter = TwoRoomsPainter()
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -134,6 +144,7 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
         else:
             self.state = self._check_state(start)
         self._steps = 0
+        self._path = [self.state.copy()]
         return self.state.copy(), {}
 
     def step(self, action: Any) -> tuple[FloatArray, float, bool, bool, dict[str, Any]]:
@@ -155,11 +166,25 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
         next_state, reward, terminated = two_rooms_step(self.state, a)
         self.state = next_state
         self._steps += 1
+        if self.render_mode is not None:
+            self._path.append(next_state.copy())
         done = bool(terminated)
         info: dict[str, Any] = {}
         if done or self._steps == self._horizon():
             info["is_success"] = done
         return next_state.copy(), float(reward), done, False, info
+
+    def render(self) -> np.ndarray | None:
+        """The current state as an ``[400, 400, 3]`` uint8 image (``render_mode="rgb_array"``).
+
+        Without a render mode: a warning (Gymnasium's convention) and ``None``.
+        """
+        if self.render_mode is None:
+            warn_no_render_mode(self)
+            return None
+        if self.state is None:
+            raise RuntimeError("call reset() before render()")
+        return self._painter.frame(np.array(self._path))
 
     def _horizon(self) -> int:
         return episode_horizon(self.spec, _DEFAULT_HORIZON)

@@ -27,6 +27,7 @@ __all__ = [
     "capped_jobs",
     "check_choices",
     "check_out",
+    "check_video_path",
     "one_line",
     "reported",
     "version_text",
@@ -118,6 +119,21 @@ def check_out(out: Path) -> None:
         )
     if out.exists() and not out.is_dir():
         raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+
+
+def check_video_path(path: Path) -> None:
+    """Usage errors for a video path that is not a ``.gif`` file in an existing directory."""
+    if path.suffix.lower() != ".gif":
+        raise typer.BadParameter(
+            f"{path} does not end in .gif (videos are animated GIFs)", param_hint="'--video'"
+        )
+    if path.is_dir():
+        raise typer.BadParameter(f"{path} is a directory", param_hint="'--video'")
+    if not path.parent.is_dir():
+        raise typer.BadParameter(
+            f"the directory {path.parent} does not exist; create it first",
+            param_hint="'--video'",
+        )
 
 
 def capped_jobs(jobs: int, scheduler: str | None) -> int:

@@ -15,6 +15,8 @@ from geoq.cli._common import (
     capped_jobs,
     check_choices,
     check_out,
+    check_video_path,
+    one_line,
     reported,
 )
 
@@ -73,15 +75,47 @@ def evaluate(
     env: Annotated[
         str | None, typer.Option("--env", help="Gymnasium id (default: the agent's own).")
     ] = None,
+    video: Annotated[
+        Path | None,
+        typer.Option(
+            "--video",
+            metavar="FILE.gif",
+            dir_okay=False,
+            help=(
+                "Also write one greedy episode as an animated GIF (the first evaluation "
+                "episode of --seed, a frame per step at the env's render_fps). Needs an env "
+                "with render_mode 'rgb_array' (geoq/PendulumSwingUp-v0, geoq/TwoRooms-v0)."
+            ),
+        ),
+    ] = None,
 ) -> None:
     """Evaluate a saved agent: mean return with its 95% interval, and the success rate."""
+    if video is not None:
+        check_video_path(video)
     with reported("evaluate", "nothing was written"):
         from geoq.agents import GPQAgent
-        from geoq.experiments.control import evaluate_agent
 
         agent = GPQAgent.load(agent_path, env=env)
+    if video is not None:
+        from geoq.experiments.video import check_renderable
+
+        try:
+            check_renderable(env or agent.env_id)
+        except ValueError as exc:
+            raise typer.BadParameter(one_line(exc), param_hint="'--video'") from exc
+    with reported("evaluate", "nothing was written"):
+        from geoq.experiments.control import evaluate_agent
+
         result = evaluate_agent(agent, env, episodes, seed)
     typer.echo(result.summary())
+    if video is not None:
+        with reported("evaluate", f"{video} was not written"):
+            from geoq.experiments.video import record_episode, write_gif
+
+            episode = record_episode(agent, env, seed)
+            write_gif(video, episode.frames, episode.fps)
+        typer.echo(f"video: {video} ({len(episode.frames)} frames at {episode.fps:g} fps, "
+                   f"return {episode.ret:.1f})")  # fmt: skip
 
 
 def bench_control(

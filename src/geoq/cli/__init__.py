@@ -7,12 +7,13 @@ Commands
     Reproduce every figure of the paper into ``DIR`` by calling
     :func:`geoq.experiments.reproduce.reproduce`; everything it does can be
     done from Python with that function.
-``geoq train --env ID --kernel K --timesteps N --seed S --out DIR``
-    Learn control with a :class:`geoq.agents.GPQAgent`
-    (:func:`geoq.experiments.control.train`).
-``geoq evaluate DIR/agent.npz --episodes N``
+``geoq train --env ID --kernel K --timesteps N --seed S --out DIR [--eval-every N]``
+    Learn control with a :class:`geoq.agents.GPQAgent`, with periodic greedy
+    evaluations (:func:`geoq.experiments.control.train`).
+``geoq evaluate DIR/agent.npz --episodes N [--video FILE.gif]``
     Deterministic evaluation episodes of a saved agent: mean return with its
-    95% interval and the success rate.
+    95% interval and the success rate; ``--video`` films the first one
+    (:mod:`geoq.experiments.video`).
 ``geoq bench-control --out DIR [--kernel K ...] [--seeds N] [--timesteps N] ...``
     Kernels x seeds through the resumable sweep runner: CONTROL.md, control.csv
     and learning curves (:func:`geoq.experiments.control.run_control_benchmark`).

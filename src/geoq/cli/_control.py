@@ -39,13 +39,30 @@ def train(
         typer.Option(
             "--out",
             file_okay=False,
-            help="Output directory: learning_curve.csv/.png, agent.npz, config.json.",
+            help=(
+                "Output directory: learning_curve.csv (training episodes), evaluations.csv "
+                "(greedy evaluations), learning_curve.png (both), agent.npz, config.json."
+            ),
         ),
     ] = Path("results/train"),
     config: Annotated[Path | None, CONFIG_OPTION] = None,
     progress: Annotated[
         bool, typer.Option("--progress/--no-progress", help="Show a progress bar on stderr.")
     ] = True,
+    eval_every: Annotated[
+        int,
+        typer.Option(
+            "--eval-every",
+            min=0,
+            help=(
+                "Greedy evaluations every N steps (at the end of the episode that reaches "
+                "them) and after the last step; 0: none. They do not change the learning."
+            ),
+        ),
+    ] = 250,
+    eval_episodes: Annotated[
+        int, typer.Option("--eval-episodes", min=1, help="Episodes per greedy evaluation.")
+    ] = 10,
 ) -> None:
     """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
     check_out(out)
@@ -55,7 +72,7 @@ def train(
 
         agent = run_train(
             env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
-            **overrides,
+            eval_every=eval_every, eval_episodes=eval_episodes, **overrides,
         )  # fmt: skip
     last = agent.episodes[-1] if agent.episodes else None
     tail = f"; last episode return {last.ret:.1f}" if last else ""

@@ -3,8 +3,9 @@
 * :func:`evaluate_agent` (from :mod:`geoq.experiments.control_eval`, shared with the
   baselines): deterministic episodes from the env's default reset, run in
   lockstep so that each step is one batched :meth:`GPQAgent.predict`.
-* :func:`train` (``geoq train``): learn, then write ``learning_curve.csv``,
-  ``learning_curve.png``, ``agent.npz`` and ``config.json`` atomically.
+* :func:`train` (``geoq train``): learn with periodic greedy evaluations, then write
+  ``learning_curve.csv``, ``evaluations.csv``, ``learning_curve.png``, ``agent.npz`` and
+  ``config.json`` atomically.
 * :func:`control_cell` / :func:`run_control_benchmark` (``geoq bench-control``):
   one sweep cell = one (agent settings, seed); the agent learns for the whole
   budget and is evaluated at every checkpoint (``eval_every`` steps) with
@@ -27,13 +28,15 @@ from geoq._io import atomic_write_json, atomic_write_text
 from geoq.agents import GPQAgent
 from geoq.envs import PENDULUM_SWING_UP_ID
 from geoq.experiments.control_eval import (
+    EVAL_COLUMNS,
     ControlCell,
+    EvalCallback,
     Evaluation,
     evaluate_agent,
     evaluation_success,
     learn_with_checkpoints,
 )
-from geoq.experiments.plotting import plot_learning_curve
+from geoq.experiments.plotting import plot_learning_curve, plot_training_with_evaluations
 from geoq.experiments.reproduce import save_figure, write_csv
 from geoq.experiments.sac_baseline import BASELINES, sac_cell
 from geoq.experiments.stats import mean_interval
@@ -84,31 +87,45 @@ def train(
     timesteps: int = 2_000,
     seed: int = 0,
     progress: bool = False,
+    eval_every: int = 250,
+    eval_episodes: int = 10,
     **config: Any,
 ) -> GPQAgent:
     """Learn with a fresh :class:`GPQAgent` and write its outputs into ``out``.
 
+    Every ``eval_every`` steps (at the end of the episode that reaches them) and after
+    the last step, ``eval_episodes`` greedy episodes (:class:`EvalCallback`, resets
+    from ``10_000 + seed`` as in the benchmark); ``eval_every=0``: none. They do not
+    change what the agent learns.
+
     Writes ``learning_curve.csv`` (``timesteps, episode, return, success`` per
-    training episode), ``learning_curve.png``, ``agent.npz`` and
-    ``config.json``, each atomically. Returns the agent.
+    training episode), ``evaluations.csv`` (:data:`EVAL_COLUMNS` per evaluation),
+    ``learning_curve.png`` (both curves), ``agent.npz`` and ``config.json``, each
+    atomically. Returns the agent.
     """
 
     out = Path(out)
     agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
-    agent.learn(timesteps, progress_bar=progress)
+    evals = EvalCallback(agent, eval_every, eval_episodes, 10_000 + seed) if eval_every else None
+    agent.learn(timesteps, progress_bar=progress, callback=evals)
+    if evals is not None:
+        evals.finish()
     out.mkdir(parents=True, exist_ok=True)
     rows = _curve_rows(agent)
     write_csv(out / "learning_curve.csv", rows, CURVE_COLUMNS)
     ts = np.array([r["timesteps"] for r in rows], dtype=np.float64)
     rets = np.array([r["return"] for r in rows], dtype=np.float64)
-    save_figure(
-        plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id),
-        out / "learning_curve.png",
-    )
+    if evals is not None:
+        write_csv(out / "evaluations.csv", evals.rows, EVAL_COLUMNS)
+        figure = plot_training_with_evaluations(ts, rets, evals.rows, env_id)
+    else:
+        figure = plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id)
+    save_figure(figure, out / "learning_curve.png")
     agent.save(out / "agent.npz")
     atomic_write_json(
         out / "config.json",
         {"env": env_id, "seed": seed, "timesteps": timesteps, "geoq_version": __version__,
+         "eval_every": eval_every, "eval_episodes": eval_episodes,
          "agent": agent.config.as_dict(), "scaling": agent.scaling.as_dict()},
     )  # fmt: skip
     return agent

@@ -8,6 +8,9 @@ in the same chunks and evaluated the same way.
   run in lockstep so that each step is one batched ``predict``.
 * :func:`learn_with_checkpoints`: learn in chunks of ``eval_every`` steps of a
   :class:`ControlCell`, evaluating after each.
+* :class:`EvalCallback`: greedy evaluations while an agent learns in one call, through
+  :meth:`GPQAgent.learn`'s episode callback (Stable-Baselines3's ``EvalCallback``);
+  ``geoq train`` plots them beside the training returns.
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ from geoq.experiments.stats import mean_interval
 from geoq.tasks import KNOWN_TASKS
 
 __all__ = [
+    "EVAL_COLUMNS",
     "Actor",
     "ControlCell",
+    "EvalCallback",
     "Evaluation",
     "evaluate_agent",
     "evaluation_success",
@@ -173,3 +178,76 @@ def learn_with_checkpoints(
         "learn_seconds": learn_seconds,
         "ms_per_step": 1e3 * learn_seconds / max(done, 1),
     }
+
+
+#: Columns of :attr:`EvalCallback.rows` (``evaluations.csv`` of ``geoq train``).
+EVAL_COLUMNS = ("timesteps", "mean_return", "return_low", "return_high", "success", "episodes")
+
+
+class LearningAgent(Actor, Protocol):
+    """An :class:`Actor` that counts its steps (:class:`~geoq.agents.GPQAgent`)."""
+
+    num_timesteps: int
+
+
+class EvalCallback:
+    """Greedy evaluations while an agent learns, like Stable-Baselines3's ``EvalCallback``.
+
+    Pass it as ``agent.learn(n, callback=cb)``, then call :meth:`finish`. After the
+    first finished episode at or past each multiple of ``eval_every`` steps (the
+    agent's callback runs between episodes, after the episode's fitted-Q phase), and
+    once more by :meth:`finish` after the last step, it runs
+    :func:`evaluate_agent` with ``n_episodes`` deterministic episodes from the
+    same resets each time (``seed``). Greedy actions draw nothing from the agent's
+    generator and the episodes run on envs of their own, so learning goes exactly as
+    without the evaluations.
+
+    Attributes
+    ----------
+    rows : one dict per evaluation, keys :data:`EVAL_COLUMNS`: the agent's step count,
+        the mean return with its Student-t 95% interval, the success as in
+        :func:`evaluation_success`, the number of episodes.
+    """
+
+    def __init__(
+        self,
+        agent: LearningAgent,
+        eval_every: int,
+        n_episodes: int = 10,
+        seed: int = 0,
+        env_id: str | None = None,
+    ) -> None:
+        if eval_every < 1 or n_episodes < 1:
+            raise ValueError(
+                f"eval_every and n_episodes must be >= 1, got {eval_every} and {n_episodes}"
+            )
+        self.agent = agent
+        self.env_id = env_id or agent.env_id
+        self.eval_every = int(eval_every)
+        self.n_episodes = int(n_episodes)
+        self.seed = int(seed)
+        self.rows: list[dict[str, Any]] = []
+        self._next = (agent.num_timesteps // self.eval_every + 1) * self.eval_every
+
+    def __call__(self, record: object) -> None:
+        """The episode callback: evaluate if a multiple of ``eval_every`` was passed."""
+        if self.agent.num_timesteps >= self._next:
+            self.evaluate()
+
+    def finish(self) -> None:
+        """Evaluate after the last step, unless that was just done."""
+        if not self.rows or self.rows[-1]["timesteps"] != self.agent.num_timesteps:
+            self.evaluate()
+
+    def evaluate(self) -> Evaluation:
+        """One evaluation now; appends a row and returns it."""
+        ev = evaluate_agent(self.agent, self.env_id, self.n_episodes, self.seed)
+        ci = mean_interval(ev.returns)
+        t = int(self.agent.num_timesteps)
+        self.rows.append(
+            {"timesteps": t, "mean_return": ci.mean, "return_low": ci.low,
+             "return_high": ci.high, "success": evaluation_success(ev, self.env_id),
+             "episodes": self.n_episodes}
+        )  # fmt: skip
+        self._next = (t // self.eval_every + 1) * self.eval_every
+        return ev

@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
+from geoq._typing import ArrayLike
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
 from geoq.experiments.stats import log_interval, mean_interval
@@ -23,6 +24,7 @@ __all__ = [
     "plot_budget_curves",
     "plot_graphs",
     "plot_learning_curve",
+    "plot_training_with_evaluations",
     "plot_value_maps",
 ]
 
@@ -187,4 +189,57 @@ def plot_learning_curve(
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.legend(fontsize=8)
+    return fig
+
+
+def plot_training_with_evaluations(
+    train_steps: ArrayLike,
+    train_returns: ArrayLike,
+    evaluations: Sequence[Mapping[str, Any]],
+    title: str,
+) -> Figure:
+    """One agent's learning: (a) the returns of its training episodes (exploring) and of
+    the greedy evaluations (mean with its 95% interval over the evaluation episodes),
+    (b) the evaluations' success, when the task reports one.
+
+    ``evaluations`` are the rows of :class:`~geoq.experiments.control_eval.EvalCallback`
+    (``timesteps``, ``mean_return``, ``return_low``, ``return_high``, ``success``).
+    """
+    t_eval = np.array([float(r["timesteps"]) for r in evaluations])
+    success = np.array([float(r["success"]) for r in evaluations])
+    with_success = bool(np.any(np.isfinite(success)))
+    fig = Figure(figsize=(10.0 if with_success else 6.4, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2 if with_success else 1, squeeze=False)[0]
+    ax = axes[0]
+    ax.plot(
+        np.asarray(train_steps, dtype=np.float64),
+        np.asarray(train_returns, dtype=np.float64),
+        "o-",
+        ms=3,
+        color="0.6",
+        label="training episodes (exploring)",
+    )
+    if len(evaluations):
+        mean = np.array([float(r["mean_return"]) for r in evaluations])
+        low = np.array([float(r["return_low"]) for r in evaluations])
+        high = np.array([float(r["return_high"]) for r in evaluations])
+        n = int(evaluations[-1].get("episodes", 0))
+        ax.plot(
+            t_eval, mean, "o-", ms=4, color="tab:blue", label=f"greedy evaluation ({n} episodes)"
+        )
+        band = np.isfinite(low) & np.isfinite(high)
+        ax.fill_between(t_eval[band], low[band], high[band], color="tab:blue", alpha=0.2, lw=0)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("episode return")
+    ax.set_title(f"(a) {title}: returns", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    if with_success:
+        ax_s = axes[1]
+        ax_s.plot(t_eval, success, "o-", ms=4, color="tab:blue")
+        ax_s.set_ylim(-0.05, 1.05)
+        ax_s.set_xlabel("environment steps")
+        ax_s.set_ylabel("success rate of the greedy episodes")
+        ax_s.set_title("(b) greedy evaluation: success", fontsize=10)
+        ax_s.grid(alpha=0.3)
     return fig

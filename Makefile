@@ -13,7 +13,7 @@ comma  := ,
 # Worker processes of the reproduction's sweeps (results do not depend on it).
 JOBS   ?= 2
 
-.PHONY: install test test-latest lock demo lint bench reproduce-paper suite clean
+.PHONY: install test test-latest lock demo lint bench reproduce-paper suite docs clean
 
 install: $(STAMP)
 
@@ -62,6 +62,23 @@ lint: install
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
+
+# The documentation site into build/site, warnings as errors. MkDocs + Material + mkdocstrings:
+# the pages stay Markdown that reads on GitHub as it is, and the API pages come from the
+# docstrings by static analysis (nothing imported). Its packages: the docs extra, installed
+# here on first use (make install does not need them).
+DOCS_STAMP := $(VENV)/.docs-installed
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
+$(DOCS_STAMP): $(STAMP)
+	@if [ -f $(LOCK) ]; then \
+		$(BIN)/python -m pip install --quiet -c $(LOCK) -e ".[docs]"; \
+	else \
+		$(BIN)/python -m pip install --quiet -e ".[docs]"; \
+	fi
+	touch $(DOCS_STAMP)
 
 bench: install
 	$(BIN)/python benchmarks/run.py

@@ -1,4 +1,7 @@
-"""Every Python block of README.md runs as written (documentation that cannot rot)."""
+"""README.md: a short page for users whose every Python block runs as written.
+
+The documentation site's pages are checked by ``tests/test_docs.py``.
+"""
 
 from __future__ import annotations
 
@@ -33,3 +36,20 @@ def test_readme_names_the_locked_versions() -> None:
     assert {name for name, _ in named} == {"numpy", "scipy", "numba", "gymnasium", "matplotlib"}
     for name, version in named:
         assert pins[name] == version, f"README says {name} {version}; the lock pins {pins[name]}"
+
+
+def test_readme_is_a_short_page_for_users() -> None:
+    """SPEC section 9 / STYLE: <= 200 lines, the two commands, nothing dated, no commit hashes
+    (the history lives in docs/results.md and CHANGELOG.md)."""
+    text = README.read_text()
+    assert len(text.splitlines()) <= 200
+    assert "make demo" in text and "make test" in text
+    assert not re.findall(r"\b20\d\d-\d\d-\d\d\b", text), "a date: move it to docs/results.md"
+    assert not re.findall(r"`[0-9a-f]{7,40}`", text), "a commit hash: move it to docs/results.md"
+
+
+def test_readme_links_resolve() -> None:
+    root = README.parent
+    for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", README.read_text()):
+        if "://" not in target:
+            assert (root / target).exists(), f"README links to a missing {target}"

@@ -1,6 +1,6 @@
 """The speed benchmarks still run: ``benchmarks/run.py --quick`` (tiny sizes, seconds).
 
-The benchmarks' figures live in the README and the issue notes; a benchmark that
+The benchmarks' figures live in docs/results.md and the issue notes; a benchmark that
 no longer runs (a helper's signature changed under it) would go unnoticed until
 someone needs its numbers. This runs every one of them end to end, on sizes too
 small for the figures to mean anything.

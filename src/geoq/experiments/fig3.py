@@ -9,7 +9,8 @@ parallel, one file per finished cell):
 2. :func:`budget_cell`, one per (kernel, max_bv, seed): the seed's training
    roll-outs (3 x 250 steps), one GP learner, its MSE against both ground
    truths and its normalised variance; then the same GP after a DTC refit on
-   its final BV set and graph (README, "Choices the paper leaves open"), and a
+   its final BV set and graph (docs/guide/reproduction.md, "Choices the paper leaves
+   open"), and a
    learner that refits after every roll-out, so the effect of staleness is
    measured on the same data.
 """

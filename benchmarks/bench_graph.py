@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from geoq.gp import SparseOnlineGP
 from geoq.gp.numerics import NumericalWarning
 from geoq.graph import MDPGraph
-from geoq.graph._apsp import DELETE_RTOL, affected_sources
+from geoq.graph._apsp_delete import DELETE_RTOL, affected_sources
 from geoq.kernels import GeodesicKernel, Kernel, SquaredExponential
 from geoq.kernels.geodesic import GraphKernel
 from geoq.learners import PENDULUM_SCALING

@@ -7,7 +7,8 @@ downstream can assume C-contiguous, finite float64 arrays.
 
 from __future__ import annotations
 
-from numbers import Integral
+import math
+from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
@@ -15,6 +16,7 @@ import numpy as np
 from geoq._typing import ArrayLike, FloatArray
 
 __all__ = [
+    "MAX_BUDGET",
     "MAX_MAGNITUDE",
     "as_float_matrix",
     "as_float_point",
@@ -23,11 +25,14 @@ __all__ = [
     "as_inputs",
     "as_target",
     "as_targets",
+    "check_budget",
     "check_count",
+    "check_int",
     "check_magnitude",
     "check_nonnegative",
     "check_novelty_tol",
     "check_positive",
+    "check_real",
 ]
 
 #: Largest magnitude of a GP input coordinate or target: squares of differences of such
@@ -185,3 +190,48 @@ def check_novelty_tol(tol: Any) -> float:
             f"k(x, x): above 1 no point would ever become a basis vector), got {tol!r}"
         )
     return t
+
+
+#: Largest basis budget a GP configuration accepts: a GP keeps a few [max_bv, max_bv]
+#: float64 matrices (5000: ~200 MB each).
+MAX_BUDGET = 5000
+
+
+def check_int(value: Any, name: str, minimum: int, maximum: int | None = None) -> int:
+    """``value`` as an int if it is an integer (not a bool) in ``[minimum, maximum]``."""
+    ok = not isinstance(value, bool | np.bool_) and isinstance(value, Integral)
+    if not ok or value < minimum or (maximum is not None and value > maximum):
+        bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+        raise ValueError(f"{name} must be an integer {bound}, got {value!r}")
+    return int(value)
+
+
+def check_budget(value: Any, name: str = "max_bv") -> int:
+    """A basis-vector budget: an integer in ``[1, MAX_BUDGET]``."""
+    try:
+        return check_int(value, name, 1, MAX_BUDGET)
+    except ValueError as exc:
+        raise ValueError(f"{exc} (a GP of more basis vectors needs gigabytes)") from None
+
+
+def check_real(
+    value: Any,
+    name: str,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """``value`` as a float if it is a finite real number (not a bool or a string) in range."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    below = low is not None and (v <= low if low_open else v < low)
+    above = high is not None and (v >= high if high_open else v > high)
+    if not math.isfinite(v) or below or above:
+        lo = "" if low is None else f"{'>' if low_open else '>='} {low:g}"
+        hi = "" if high is None else f"{'<' if high_open else '<='} {high:g}"
+        bounds = " and ".join(p for p in (lo, hi) if p)
+        raise ValueError(f"{name} must be a finite number {bounds}, got {value!r}")
+    return v

@@ -7,7 +7,7 @@ import pytest
 from scipy.sparse.csgraph import dijkstra
 
 from geoq.graph import MDPGraph
-from geoq.graph._apsp import DELETE_RTOL, delete_node_paths
+from geoq.graph._apsp_delete import DELETE_RTOL, delete_node_paths
 from geoq.graph.mdp_graph import _to_csgraph
 
 

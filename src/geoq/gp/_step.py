@@ -51,6 +51,8 @@ changed ``stop_changes`` times (the caller then refreshes ``diag(Q)``).
 
 from __future__ import annotations
 
+from typing import TypeAlias
+
 import numpy as np
 from numba import njit
 
@@ -82,6 +84,10 @@ from geoq.gp.numerics import VAR_ROUNDING
 
 __all__ = [
     "N_WORK",
+    "GPBuffers",
+    "SEParameters",
+    "Scratch",
+    "StepSettings",
     "online_step_lower",
     "se_kernel_vector",
     "se_stream",
@@ -90,6 +96,15 @@ __all__ = [
 #: Number of ``[cap]`` work vectors :func:`_step` needs.
 N_WORK = 8
 
+#: The sparse GP's state buffers ``(BV, mu, S, R, alpha, mdiag)`` (see :func:`_step`).
+GPBuffers: TypeAlias = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+#: Scratch of a step ``(work, T, counters)``.
+Scratch: TypeAlias = tuple[FloatArray, FloatArray, IntArray]
+#: A step's settings ``(noise, tol, floor, noise_floor, max_bv)``.
+StepSettings: TypeAlias = tuple[float, float, float, float, int]
+#: The squared exponential of :func:`se_kernel_vector`: ``(inv_ls [d], period [d], variance)``.
+SEParameters: TypeAlias = tuple[FloatArray, FloatArray, float]
+
 
 @njit(cache=True)
 def _step(  # pragma: no cover - compiled
@@ -97,48 +112,41 @@ def _step(  # pragma: no cover - compiled
     kxx: float,
     y: float,
     x: FloatArray,
-    noise: float,
-    tol: float,
-    floor: float,
-    noise_floor: float,
-    max_bv: int,
-    BV: FloatArray,
-    mu: FloatArray,
-    S: FloatArray,
-    R: FloatArray,
-    alpha: FloatArray,
-    mdiag: FloatArray,
+    settings: StepSettings,
+    state: GPBuffers,
     m: int,
-    work: FloatArray,
-    T: FloatArray,
-    counters: IntArray,
+    scratch: Scratch,
 ) -> tuple[int, int, int]:
     """One Csató–Opper step for ``(x, y)``, in place, on the lower triangle of ``S``.
 
-    State (leading ``m`` block of each buffer; ``cap = max_bv + 1``):
-    ``BV`` [cap, d]; ``R`` [cap, cap] upper with ``K_BV = R^T R``; the whitened
-    posterior ``u ~ N(mu, S)`` with ``f_BV = R^T u`` (``mu`` [cap], ``S`` [cap, cap],
-    ``0 <= S <= I``; only ``S[a, b]``, ``b <= a``, is read or written); and, for
-    the deletion scores only, ``alpha = R^{-1} mu`` [cap] and
-    ``mdiag = diag(Q + C) = diag(R^{-1} S R^{-T})`` [cap], both following the
-    rank-one updates of Csató–Opper in O(m). ``T`` [cap, cap] and ``work``
-    [N_WORK, cap] are scratch; ``counters`` int64 [len(COUNTER_NAMES)].
+    ``state`` = ``(BV, mu, S, R, alpha, mdiag)`` (:data:`GPBuffers`, the leading ``m``
+    block of each buffer; ``cap = max_bv + 1``): ``BV`` [cap, d]; ``R`` [cap, cap]
+    upper with ``K_BV = R^T R``; the whitened posterior ``u ~ N(mu, S)`` with
+    ``f_BV = R^T u`` (``mu`` [cap], ``S`` [cap, cap], ``0 <= S <= I``; only
+    ``S[a, b]``, ``b <= a``, is read or written); and, for the deletion scores only,
+    ``alpha = R^{-1} mu`` [cap] and ``mdiag = diag(Q + C) = diag(R^{-1} S R^{-T})``
+    [cap], both following the rank-one updates of Csató–Opper in O(m).
+    ``scratch`` = ``(work, T, counters)`` (:data:`Scratch`): ``work`` [N_WORK, cap] and
+    ``T`` [cap, cap] are scratch, ``counters`` int64 [len(COUNTER_NAMES)] the counts.
 
     Parameters
     ----------
     k : [cap] ``k(BV_j, x)`` in its first ``m`` entries.  kxx : ``k(x, x)``.
-    noise : observation-noise variance ``sigma0^2``.
-    tol, floor : novelty is accepted iff ``gamma > 0``, ``gamma >= tol * kxx`` and
-        ``gamma >= floor * kxx``.
-    noise_floor : the noise variance used is ``max(noise, noise_floor * kxx)``
-        (counted when it bites): with a noise far below the rounding level of ``S``
-        the rank-one downdates would amplify rounding errors without bound.
+    settings : ``(noise, tol, floor, noise_floor, max_bv)`` (:data:`StepSettings`):
+        ``noise`` the observation-noise variance ``sigma0^2``; novelty is accepted iff
+        ``gamma > 0``, ``gamma >= tol * kxx`` and ``gamma >= floor * kxx``; the noise
+        variance used is ``max(noise, noise_floor * kxx)`` (counted when it bites: with
+        a noise far below the rounding level of ``S`` the rank-one downdates would
+        amplify rounding errors without bound); ``max_bv`` the budget.
 
     Returns
     -------
     (m_new, added, deleted) : new basis size; 1 if ``x`` was appended to the basis
     set, else 0; the index of the deleted basis vector (after the append) or -1.
     """
+    noise, tol, floor, noise_floor, max_bv = settings
+    BV, mu, S, R, alpha, mdiag = state
+    work, T, counters = scratch
     v = work[0]
     g = work[1]
     e = work[2]
@@ -298,21 +306,10 @@ def online_step_lower(  # pragma: no cover - compiled
     kxx: float,
     y: float,
     x: FloatArray,
-    noise: float,
-    tol: float,
-    floor: float,
-    noise_floor: float,
-    max_bv: int,
-    BV: FloatArray,
-    mu: FloatArray,
-    S: FloatArray,
-    R: FloatArray,
-    alpha: FloatArray,
-    mdiag: FloatArray,
+    settings: StepSettings,
+    state: GPBuffers,
     m: int,
-    work: FloatArray,
-    T: FloatArray,
-    counters: IntArray,
+    scratch: Scratch,
 ) -> tuple[int, int, int]:
     """:func:`_step` for a stream of points: ``S`` stays lower-triangular (no mirror).
 
@@ -329,10 +326,7 @@ def online_step_lower(  # pragma: no cover - compiled
             finite = False
     if not finite:
         return m, -1, -1
-    return _step(
-        k, kxx, y, x, noise, tol, floor, noise_floor, max_bv,
-        BV, mu, S, R, alpha, mdiag, m, work, T, counters,
-    )  # fmt: skip
+    return _step(k, kxx, y, x, settings, state, m, scratch)
 
 
 @njit(cache=True)
@@ -364,28 +358,16 @@ def se_stream(  # pragma: no cover - compiled
     X: FloatArray,
     y: FloatArray,
     start: int,
-    inv_ls: FloatArray,
-    period: FloatArray,
-    variance: float,
-    noise: float,
-    tol: float,
-    floor: float,
-    noise_floor: float,
-    max_bv: int,
-    BV: FloatArray,
-    mu: FloatArray,
-    S: FloatArray,
-    R: FloatArray,
-    alpha: FloatArray,
-    mdiag: FloatArray,
+    se: SEParameters,
+    settings: StepSettings,
+    state: GPBuffers,
     m: int,
     kbuf: FloatArray,
-    work: FloatArray,
-    T: FloatArray,
-    counters: IntArray,
+    scratch: Scratch,
     stop_changes: int,
 ) -> tuple[int, int, int]:
-    """Stream rows ``start, start+1, ...`` of ``X`` [N, d], ``y`` [N] through :func:`_step`.
+    """Stream rows ``start, start+1, ...`` of ``X`` [N, d], ``y`` [N] through :func:`_step`,
+    ``k_x`` from the squared exponential ``se = (inv_ls, period, variance)``.
 
     Stops after the row at which the basis set has changed ``stop_changes``
     times (an addition or a deletion each count one), or at the end.
@@ -395,15 +377,14 @@ def se_stream(  # pragma: no cover - compiled
     (next_row, m, changes) : the first unprocessed row, the basis size, and the
     number of basis-set changes made.
     """
+    inv_ls, period, variance = se
+    BV, S = state[0], state[2]
     changes = 0
     n = X.shape[0]
     t = start
     while t < n:
         se_kernel_vector(X[t], BV, m, inv_ls, period, variance, kbuf)
-        m, added, deleted = _step(
-            kbuf, variance, y[t], X[t], noise, tol, floor, noise_floor, max_bv,
-            BV, mu, S, R, alpha, mdiag, m, work, T, counters,
-        )  # fmt: skip
+        m, added, deleted = _step(kbuf, variance, y[t], X[t], settings, state, m, scratch)
         t += 1
         changes += added + (1 if deleted >= 0 else 0)
         if changes >= stop_changes:

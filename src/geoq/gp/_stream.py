@@ -53,16 +53,13 @@ def stream(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
     if fast is None:
         _stream_points(gp, X, y)
         return
-    inv_ls, period, variance = fast
+    settings, state, scratch = gp._step_settings(), gp._buffers(), gp._scratch()
     t = 0
     while t < X.shape[0]:
+        stop = gp.resync_every - gp._changes
         t, gp._m, changes = se_stream(
-            X, y, t, inv_ls, period, variance, gp.noise, gp.tol,
-            gp.config.novelty_floor, gp.config.noise_floor, gp.max_bv,
-            gp._bv, gp._mu, gp._S, gp._R, gp._alpha, gp._mdiag, gp._m,
-            gp._kbuf, gp._work, gp._T, gp._counts.step,
-            gp.resync_every - gp._changes,
-        )  # fmt: skip
+            X, y, t, fast, settings, state, gp._m, gp._kbuf, scratch, stop
+        )
         gp._changes += changes
         if gp._changes >= gp.resync_every:
             gp._resync_q()
@@ -80,11 +77,7 @@ def _stream_points(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
     fused = kernel.fused_row()
     row_exponent, variance = (None, 1.0) if fused is None else fused
     S, kbuf, bv = gp._S, gp._kbuf, gp._bv
-    args = (
-        gp.noise, gp.tol, gp.config.novelty_floor, gp.config.noise_floor,
-        gp.max_bv, bv, gp._mu, S, gp._R, gp._alpha, gp._mdiag,
-    )  # fmt: skip
-    work, T, counters = gp._work, gp._T, gp._counts.step
+    settings, state, scratch = gp._step_settings(), gp._buffers(), gp._scratch()
     repair = gp._novelty_repair()
     try:
         for x, yt in zip(X, y.tolist(), strict=True):
@@ -98,7 +91,7 @@ def _stream_points(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
             if repair is not None:
                 kxx = repair(kbuf, scale, kxx, m)
             gp._m, added, deleted = online_step_lower(
-                kbuf, scale, kxx, yt, x, *args, m, work, T, counters
+                kbuf, scale, kxx, yt, x, settings, state, m, scratch
             )
             if added < 0:
                 raise ValueError(f"kernel returned non-finite covariances at x={x}; check it")

@@ -53,15 +53,11 @@ Numerical health
 
 from __future__ import annotations
 
-import copy
-import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from os import PathLike
 from typing import Any, Literal, overload
 
 import numpy as np
-import scipy.linalg
 
 from geoq._io import load_archive, save_archive
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
@@ -71,6 +67,7 @@ from geoq._validation import (
     as_inputs,
     as_target,
     as_targets,
+    check_budget,
     check_count,
     check_novelty_tol,
     check_positive,
@@ -79,18 +76,16 @@ from geoq.gp._nb_delete import refresh_scores
 from geoq.gp._persist import FORMAT_KIND, FORMAT_VERSION, gp_from_arrays, gp_to_arrays
 from geoq.gp._predict import FACTOR_ROUTE_MIN, predict_chunked, predict_factored
 from geoq.gp._resync import (
-    FactorMemo,
     ProjectedSystem,
     factor_gram,
     projected_system,
     reanchor,
 )
-from geoq.gp._step import N_WORK
+from geoq.gp._state import OnlineGPState
 from geoq.gp._stream import stream
-from geoq.gp.diagnostics import Counters, OnlineDiagnostics, repair_warning
+from geoq.gp.diagnostics import OnlineDiagnostics
 from geoq.gp.numerics import (
     CONFIG,
-    NumericalWarning,
     NumericsConfig,
     robust_cholesky,
 )
@@ -101,7 +96,7 @@ from geoq.kernels.base import Kernel
 __all__ = ["OnlineDiagnostics", "SparseOnlineGP", "robust_cholesky"]
 
 
-class SparseOnlineGP:
+class SparseOnlineGP(OnlineGPState):
     """Sparse online GP regression (Csató & Opper 2002) with a basis-vector budget.
 
     Parameters
@@ -110,7 +105,7 @@ class SparseOnlineGP:
         :class:`~geoq.kernels.base.Kernel` (``diag``, ``to_basis``, ``basis_gram``,
         the ``basis_*`` hooks and the optional ``fused_row`` / ``se_parameters``).
     noise : observation-noise *variance* ``sigma0^2`` (> 0).
-    max_bv : basis-vector budget (integer >= 1).
+    max_bv : basis-vector budget (integer in ``[1, MAX_BUDGET]``, 5000).
     tol : relative novelty threshold: ``x`` becomes a BV iff ``gamma >= tol * k(x, x)``.
     resync_every : BV-set changes between exact refreshes of the deletion scores
         (and re-factorisations of ``K_BV`` for basis-tracking kernels); default
@@ -145,7 +140,7 @@ class SparseOnlineGP:
         kernel.bind(self)  # a graph kernel serves one GP only
         self.kernel = kernel
         self.noise = check_positive(noise, "noise")
-        self.max_bv = check_count(max_bv, "max_bv")
+        self.max_bv = check_budget(max_bv)
         self.tol = check_novelty_tol(tol)
         if resync_every is None:
             resync_every = (
@@ -155,89 +150,6 @@ class SparseOnlineGP:
         self.config = config
         self._dim: int | None = kernel.input_dim
         self._reset_state()
-
-    # ------------------------------------------------------------------ state
-    def _reset_state(self) -> None:
-        cap = self.max_bv + 1
-        d = 0 if self._dim is None else self._dim
-        self._m = 0
-        self._bv = np.zeros((cap, d))  # [cap, d]
-        self._R = np.zeros((cap, cap))  # [cap, cap] upper, K_BV = R^T R
-        self._mu = np.zeros(cap)  # [cap] whitened posterior mean, f_BV = R^T u
-        self._S = np.zeros((cap, cap))  # [cap, cap] whitened posterior covariance
-        self._alpha = np.zeros(cap)  # [cap] R^{-1} mu, for the deletion scores
-        self._mdiag = np.zeros(cap)  # [cap] diag(Q + C), for the deletion scores
-        self._T = np.zeros((cap, cap))  # [cap, cap] scratch
-        self._kbuf = np.zeros(cap)
-        self._work = np.zeros((N_WORK, cap))
-        self._counts = Counters()  # every counter, and whether the warning was shown
-        self._changes = 0
-        self._factor_memo: FactorMemo | None = None  # the last K_BV factorised
-
-    def _set_dim(self, d: int) -> None:
-        if self._dim is None:
-            self._dim = d
-            self._bv = np.zeros((self.max_bv + 1, d))
-
-    @property
-    def n_bv(self) -> int:
-        """Current number of basis vectors."""
-        return self._m
-
-    @property
-    def basis_vectors(self) -> FloatArray:
-        """The BV set, ``[n_bv, d]`` (a copy), in the order the kernel hooks saw."""
-        return self._bv[: self._m].copy()
-
-    def _rinv(self) -> FloatArray:
-        m = self._m
-        R = np.ascontiguousarray(self._R[:m, :m])
-        return scipy.linalg.solve_triangular(R, np.eye(m), check_finite=False)
-
-    @property
-    def alpha(self) -> FloatArray:
-        """Posterior mean weights ``alpha = R^{-1} mu`` ``[n_bv]``: ``mean(x) = k_x^T alpha``."""
-        return self._rinv() @ self._mu[: self._m]
-
-    @property
-    def C(self) -> FloatArray:
-        """``C = R^{-1} (S - I) R^{-T}`` ``[n_bv, n_bv]``: ``var(x) = k(x,x) + k_x^T C k_x``."""
-        m = self._m
-        Rinv = self._rinv()
-        C = Rinv @ (self._S[:m, :m] - np.eye(m)) @ Rinv.T
-        return 0.5 * (C + C.T)
-
-    @property
-    def Q(self) -> FloatArray:
-        """``Q = K_BV^{-1} = R^{-1} R^{-T}`` ``[n_bv, n_bv]`` from the maintained factor."""
-        Rinv = self._rinv()
-        Q = Rinv @ Rinv.T
-        return 0.5 * (Q + Q.T)
-
-    @property
-    def cholesky_factor(self) -> FloatArray:
-        """Upper Cholesky factor ``R`` [n_bv, n_bv] with ``K_BV = R^T R`` (a copy)."""
-        return np.triu(self._R[: self._m, : self._m])
-
-    @property
-    def whitened_posterior(self) -> tuple[FloatArray, FloatArray]:
-        """``(mu [n_bv], S [n_bv, n_bv])``: ``u ~ N(mu, S)`` with ``f_BV = R^T u`` (copies)."""
-        m = self._m
-        return self._mu[:m].copy(), self._S[:m, :m].copy()
-
-    @property
-    def diagnostics(self) -> OnlineDiagnostics:
-        """A snapshot of the counters (see :class:`OnlineDiagnostics`)."""
-        return self._counts.snapshot()
-
-    def _warn_once(self) -> None:
-        if self._counts.warned or not self._counts.any_repair():
-            return
-        repairs = self._counts.repairs()
-        if not repairs:
-            return
-        self._counts.warned = True
-        warnings.warn(repair_warning(repairs), NumericalWarning, stacklevel=3)
 
     # ------------------------------------------------------------ validation
     # update, fit, partial_fit, refit and predict accept what geoq._validation's
@@ -297,43 +209,6 @@ class SparseOnlineGP:
             self._stream(Xa, ya)
         self._warn_once()
         return self
-
-    #: Scratch buffers: not part of the model's state.
-    _SCRATCH = frozenset({"_T", "_kbuf", "_work", "kernel", "config", "_factor_memo"})
-
-    @contextmanager
-    def _all_or_nothing(self) -> Iterator[None]:
-        """Restore the model (and a basis-tracking kernel's graph) if the body raises.
-
-        The snapshot copies the state buffers (O(max_bv^2)) and, for a kernel that
-        follows the basis set, the kernel's state (its graph): cheap next to a batch
-        of updates; :meth:`update` (one row, the agents' per-step call) takes none.
-        """
-        state = {k: copy.deepcopy(v) for k, v in vars(self).items() if k not in self._SCRATCH}
-        kernel = self.kernel
-        kernel_state = None
-        if kernel.tracks_basis:  # a copy starts unbound (Kernel.__getstate__)
-            kernel_state = vars(copy.deepcopy(kernel))
-        try:
-            yield
-        except BaseException:
-            vars(self).update(state)
-            if kernel_state is not None:
-                vars(kernel).clear()
-                vars(kernel).update(kernel_state)
-                kernel.bind(self)  # the restored state is unbound; this GP owns the kernel
-            raise
-
-    def copy(self) -> SparseOnlineGP:
-        """An independent model in the same state, kernel (and its graph) included.
-
-        Updates of the copy and of the original give the same numbers as they would
-        on either alone (``copy.deepcopy``: every buffer copied bit for bit); the
-        copied kernel is bound to the copy.
-        """
-        new = copy.deepcopy(self)  # the kernel's copy starts unbound (Kernel.__getstate__)
-        new.kernel.bind(new)
-        return new
 
     def _stream(self, X: FloatArray, y: FloatArray) -> None:
         """Apply ``X`` [N, d], ``y`` [N] in order (:func:`geoq.gp._stream.stream`)."""

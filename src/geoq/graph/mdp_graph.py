@@ -62,13 +62,8 @@ from geoq._geometry import (
 )
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
-from geoq.graph._apsp import (
-    DELETE_RTOL,
-    add_linked_node,
-    delete_node_paths,
-    drop_index,
-    insert_edge,
-)
+from geoq.graph._apsp import add_linked_node, insert_edge
+from geoq.graph._apsp_delete import DELETE_RTOL, delete_node_paths, drop_index
 from geoq.graph._persist import graph_from_arrays, graph_to_arrays
 
 __all__ = ["EdgeWeight", "MDPGraph"]

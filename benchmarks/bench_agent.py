@@ -66,11 +66,11 @@ def main(quick: bool = False) -> None:
         start = time.perf_counter()
         agent.learn(n)
         t_learn = (time.perf_counter() - start) / n
-        phases = len(agent.fitted_q_sweeps)
-        t_train = agent.train_seconds / n  # the phases learn() ran, per step
+        phases = len(agent.log.fitted_q_sweeps)
+        t_train = agent.log.train_seconds / n  # the phases learn() ran, per step
         obs = np.array([0.3, -1.0])
         t_predict = _per_call(lambda: agent.predict(obs), repeat)  # noqa: B023
-        X = agent._candidate_inputs(obs[None, :])
+        X = agent.scaling.transform_pairs(obs[None, :], agent.candidates)
         x = agent.inputs(obs[None, :], np.array([[1.0]]))[0]
         t_gp = _per_call(lambda: agent.gp.predict(X, return_std=True), repeat)  # noqa: B023
         t_gp += _per_call(lambda: agent.gp.update(x, 0.0), repeat)  # noqa: B023
@@ -102,13 +102,13 @@ def _replay_cost_per_episode(max_bv: int = 200, episodes: int = 6, steps: int = 
         agent = GPQAgent(ENV, max_bv=max_bv, seed=0, replay=replay)
         per_episode = []
         for _ in range(episodes):
-            before = agent.train_seconds
+            before = agent.log.train_seconds
             agent.learn(steps)
-            per_episode.append(agent.train_seconds - before)
+            per_episode.append(agent.log.train_seconds - before)
         print(
             f"{max_bv:>6} {replay:>7} replay while learning: fitted-Q + replay s per episode "
             + " ".join(f"{t:.2f}" for t in per_episode)
-            + f" (max {max(per_episode):.2f}, {len(agent.fitted_q_sweeps)} phases)"
+            + f" (max {max(per_episode):.2f}, {len(agent.log.fitted_q_sweeps)} phases)"
         )
 
 

@@ -90,9 +90,7 @@ def outcome(agent: GPQAgent, actions: list[np.ndarray]) -> dict[str, np.ndarray]
         "actions": np.array(actions),
         "targets": agent.buffer.targets(),
         "alpha": np.asarray(agent.gp.alpha, dtype=np.float64),
-        "standardisation": np.array([agent.state.y_mean, agent.state.y_scale])
-        if hasattr(agent, "state")
-        else np.array([agent.y_mean, agent.y_scale]),
+        "standardisation": np.array([agent.state.y_mean, agent.state.y_scale]),
         "episodes": np.array(episodes, dtype=np.float64).reshape(-1, 4),
     }
 

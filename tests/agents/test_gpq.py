@@ -104,9 +104,9 @@ def test_residuals_say_whether_a_phase_converged() -> None:
     """A phase cut at one sweep leaves targets moving; one given room converges (the
     tiny task's fitted-Q is a contraction) and its residual is within the tolerance."""
     cut = _agent(max_bv=30, max_sweeps=1, sweep_tol=1e-9).learn(60)
-    assert set(cut.fitted_q_sweeps) == {1} and min(cut.fitted_q_residuals) > 0.0
+    assert set(cut.log.fitted_q_sweeps) == {1} and min(cut.log.fitted_q_residuals) > 0.0
     room = _agent(max_bv=30, max_sweeps=5_000).learn(60)
-    pairs = zip(room.fitted_q_sweeps, room.fitted_q_residuals, strict=True)
+    pairs = zip(room.log.fitted_q_sweeps, room.log.fitted_q_residuals, strict=True)
     converged = [r for n, r in pairs if n < 5_000]
     assert converged and max(converged) <= room.config.sweep_tol * 2 * max(
         abs(v) for v in room.value_bounds()
@@ -118,11 +118,11 @@ def test_round_trip_keeps_the_phase_schedule(tmp_path: Path) -> None:
     path = tmp_path / "agent.npz"
     agent.save(path)
     loaded = GPQAgent.load(path, env=PointToGoal())
-    assert loaded.last_train_timestep == agent.last_train_timestep
+    assert loaded.state.last_train_timestep == agent.state.last_train_timestep
     agent.learn(50)
     loaded.learn(50)
-    assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
-    assert loaded.fitted_q_residuals == agent.fitted_q_residuals
+    assert loaded.log.fitted_q_sweeps == agent.log.fitted_q_sweeps
+    assert loaded.log.fitted_q_residuals == agent.log.fitted_q_residuals
     obs = np.linspace(-1, 1, 11)[:, None]
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
 
@@ -141,12 +141,12 @@ def test_files_without_train_fraction_keep_the_fixed_schedule(tmp_path: Path) ->
     np.savez(old, **arrays)
     loaded = GPQAgent.load(old, env=PointToGoal())
     assert loaded.config == agent.config and loaded.config.train_fraction == 0.0
-    n_old = len(agent.fitted_q_sweeps)
+    n_old = len(agent.log.fitted_q_sweeps)
     agent.learn(30)
     loaded.learn(30)
-    assert loaded.fitted_q_sweeps == agent.fitted_q_sweeps
-    assert np.all(np.isnan(loaded.fitted_q_residuals[:n_old]))
-    assert loaded.fitted_q_residuals[n_old:] == agent.fitted_q_residuals[n_old:]
+    assert loaded.log.fitted_q_sweeps == agent.log.fitted_q_sweeps
+    assert np.all(np.isnan(loaded.log.fitted_q_residuals[:n_old]))
+    assert loaded.log.fitted_q_residuals[n_old:] == agent.log.fitted_q_residuals[n_old:]
 
 
 @pytest.mark.parametrize("kernel", ["euclidean", "nearest"])
@@ -165,7 +165,8 @@ def test_candidate_inputs_are_the_public_inputs_bit_for_bit() -> None:
     states = np.random.default_rng(0).uniform(-3, 3, size=(5, agent.obs_dim))
     K = agent.candidates.shape[0]
     expected = agent.inputs(np.repeat(states, K, axis=0), np.tile(agent.candidates, (5, 1)))
-    assert agent._candidate_inputs(states).tobytes() == expected.tobytes()
+    got = agent.scaling.transform_pairs(states, agent.candidates)
+    assert got.tobytes() == expected.tobytes()
 
 
 @pytest.mark.parametrize("kernel", ["euclidean", "resistance"])
@@ -173,10 +174,11 @@ def test_stored_next_q_is_q_mean_at_the_stored_next_states(kernel: str) -> None:
     """Graph replay's TD priorities: from the kept covariances (squared exponential) or
     one GP call (a kernel that follows its basis), the posterior mean either way."""
     agent = _agent(kernel=kernel, max_bv=30, window=50).learn(80)
-    _, _, _, S2, _ = agent.buffer.arrays(last=agent.config.window)
-    q = agent._stored_next_q(S2)
+    stored = agent.buffer.transitions(last=agent.config.window)
+    q = agent.phase.stored_next_q(agent._phase_inputs(stored))
     assert q.shape == (50, agent.candidates.shape[0])
-    np.testing.assert_allclose(q, agent.q_mean(S2), rtol=1e-12, atol=1e-12)
+    expected = agent.q_mean(stored.next_states)
+    np.testing.assert_allclose(q, expected, rtol=1e-12, atol=1e-12)
 
 
 def test_damaged_files_raise_archive_error(tmp_path: Path) -> None:
@@ -282,10 +284,10 @@ def test_replay_none_keeps_the_online_targets_and_uniform_rebootstraps_them() ->
     fixed = {"train_every": 250, "train_fraction": 0.0}  # no phase inside the first episode
     none = _agent(replay="none", **fixed).learn(120)
     uniform = _agent(replay="uniform", **fixed).learn(120)
-    assert none.fitted_q_sweeps and set(none.fitted_q_sweeps) == {0}
-    assert max(uniform.fitted_q_sweeps) > 0
-    assert set(none.fitted_q_residuals) == {0.0}
-    assert len(uniform.fitted_q_residuals) == len(uniform.fitted_q_sweeps)
+    assert none.log.fitted_q_sweeps and set(none.log.fitted_q_sweeps) == {0}
+    assert max(uniform.log.fitted_q_sweeps) > 0
+    assert set(none.log.fitted_q_residuals) == {0.0}
+    assert len(uniform.log.fitted_q_residuals) == len(uniform.log.fitted_q_sweeps)
     # Without replay a stored target is exactly what was bootstrapped online: r + gamma max Q
     # clipped, never recomputed; the sweeps of uniform replay move them.
     # The first episode (40 steps) is the same for both (same seed, same prior); its
@@ -310,13 +312,13 @@ class _UnboundedPoint(PointToGoal):
 def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Path) -> None:
     # The warm-up states span about half the box: finer length-scales, more BVs.
     agent = GPQAgent(_UnboundedPoint(), seed=0, gamma=0.9, max_bv=120, warmup_steps=60)
-    assert agent.scaling_pending
+    assert agent.state.scaling_pending
     with pytest.raises(ValueError, match=r"infinite bounds.*warm-up"):
         agent.predict(np.array([0.0]))
     agent.learn(30)  # not enough to fix the scaling: still refused, nothing streamed
-    assert agent.scaling_pending and agent.gp.n_bv == 0
+    assert agent.state.scaling_pending and agent.gp.n_bv == 0
     agent.learn(370)
-    assert not agent.scaling_pending
+    assert not agent.state.scaling_pending
     # The scale follows the states seen (rescaled as exploration widened them).
     S, _, _, S2, _ = agent.buffer.arrays(last=None)
     states = np.concatenate([S[:, 0], S2[:, 0]])
@@ -330,8 +332,8 @@ def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Pa
     path = tmp_path / "agent.npz"
     agent.save(path)
     loaded = GPQAgent.load(path, env=_UnboundedPoint())
-    assert loaded.scaling == agent.scaling and not loaded.scaling_pending
-    assert agent.rescales >= 2 and loaded.rescales == agent.rescales  # warm-up + growth
+    assert loaded.scaling == agent.scaling and not loaded.state.scaling_pending
+    assert agent.log.rescales >= 2 and loaded.log.rescales == agent.log.rescales  # warm-up + growth
     obs = np.linspace(-1, 1, 7)[:, None]
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
 
@@ -343,7 +345,8 @@ def test_declared_reward_bounds_set_the_value_bounds_from_the_first_step() -> No
     assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
     assert _agent().learn(40).value_bounds() == pytest.approx((-10.0, -1.0))  # seen only
     car = GPQAgent("MountainCarContinuous-v0", max_bv=10)  # known: -0.1 a^2, +100 at the flag
-    assert car.reward_range == (-0.1, 0.0) and car.terminal_reward_range == (99.9, 100.0)
+    assert car.state.reward_range == (-0.1, 0.0)
+    assert car.state.terminal_reward_range == (99.9, 100.0)
     # The flag's reward ends the episode: received once, not 100 / (1 - gamma) = 5,000.
     assert car.value_bounds() == pytest.approx((-0.1 / (1.0 - car.config.gamma), 100.0))
     config = GPQConfig(reward_bounds=(-2.0, 3.0))
@@ -357,31 +360,31 @@ def test_evidence_hyperparameters_fit_the_lengthscales_on_a_doubling_schedule(
     tmp_path: Path,
 ) -> None:
     agent = _agent(hyperparameters="evidence").learn(400)
-    fits = agent.evidence_fits
+    fits = agent.log.evidence_fits
     assert len(fits) >= 3
     sizes = [f["transitions"] for f in fits]
     assert all(b >= 2 * a for a, b in itertools.pairwise(sizes))
     for f in fits:  # each fit improves on the length-scales in use (its warm start)
         assert f["log_evidence"] >= f["log_evidence_start"]
-    assert agent.fitted_lengthscale == tuple(fits[-1]["lengthscale"])
+    assert agent.state.fitted_lengthscale == tuple(fits[-1]["lengthscale"])
     np.testing.assert_array_equal(
-        np.broadcast_to(agent.gp.kernel.lengthscale, (2,)), agent.fitted_lengthscale
+        np.broadcast_to(agent.gp.kernel.lengthscale, (2,)), agent.state.fitted_lengthscale
     )
     rule = _agent().learn(400)
-    assert rule.evidence_fits == [] and rule.fitted_lengthscale is None
+    assert rule.log.evidence_fits == [] and rule.state.fitted_lengthscale is None
     # Same seed, same fits; saved and reloaded, the agent keeps and continues them.
     again = _agent(hyperparameters="evidence").learn(400)
-    assert again.evidence_fits == fits
+    assert again.log.evidence_fits == fits
     path = tmp_path / "agent.npz"
     agent.save(path)
     loaded = GPQAgent.load(path, env=PointToGoal())
-    assert loaded.fitted_lengthscale == agent.fitted_lengthscale
-    assert loaded.evidence_due == agent.evidence_due
-    due = agent.evidence_due
+    assert loaded.state.fitted_lengthscale == agent.state.fitted_lengthscale
+    assert loaded.state.evidence_due == agent.state.evidence_due
+    due = agent.state.evidence_due
     agent.learn(450)
     loaded.learn(450)
-    assert agent.evidence_fits[-1]["transitions"] >= due  # the schedule went on
-    assert loaded.evidence_fits == agent.evidence_fits
+    assert agent.log.evidence_fits[-1]["transitions"] >= due  # the schedule went on
+    assert loaded.log.evidence_fits == agent.log.evidence_fits
     obs = np.linspace(-1, 1, 7)[:, None]
     np.testing.assert_array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
     with pytest.raises(ValueError, match="needs kernel='euclidean'"):
@@ -422,8 +425,8 @@ def test_value_bounds_hold_every_discounted_return_brute_force(
 
 def test_terminal_rewards_seen_widen_only_the_terminal_range() -> None:
     agent = _agent(reward_bounds=(-1.0, -1.0), terminal_reward_bounds=(5.0, 5.0)).learn(200)
-    assert agent.reward_range == (-1.0, -1.0)  # PointToGoal pays -1 on every step,
-    assert agent.terminal_reward_range == (-1.0, 5.0)  # the terminating ones included
+    assert agent.state.reward_range == (-1.0, -1.0)  # PointToGoal pays -1 on every step,
+    assert agent.state.terminal_reward_range == (-1.0, 5.0)  # the terminating ones included
     assert agent.value_bounds() == pytest.approx((-10.0, 5.0))
     with pytest.raises(ValueError, match="terminal_reward_bounds"):
         _agent(terminal_reward_bounds=(1.0, 0.0))

@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from tests.agents._tasks import PointToGoal
 
 from geoq.agents import GPQAgent
-from geoq.agents.graph_replay import imagine_transitions, link_radius
+from geoq.agents.buffer import Transitions
+from geoq.agents.graph_replay import GraphModel, imagine_transitions, link_radius
 
 
 def _brute_force(S, A, R, S2, term, state, action, *, units, periods, eps, max_links, ridge=0.1):
@@ -76,10 +77,8 @@ def test_imagined_transitions_match_a_brute_force_graph(seed: int, periodic: boo
     units = np.array([0.8, 0.7, 0.9])
     candidates = np.linspace(-1, 1, 5)[:, None]
     priority = rng.random(n)
-    im = imagine_transitions(
-        S, A, R, S2, term, units=units, periods=periods, candidates=candidates,
-        priority=priority, budget=10 * n, eps=0.4, max_links=4,
-    )  # fmt: skip
+    model = GraphModel(units=units, periods=periods, eps=0.4, max_links=4)
+    im = imagine_transitions(Transitions(S, A, R, S2, term), model, candidates, priority, 10 * n)
     # Every source state is paired with the candidates other than the one nearest its action.
     expected_pairs = set()
     for i in range(n):
@@ -112,17 +111,13 @@ def test_budget_takes_the_highest_priority_sources_first() -> None:
     priority = np.zeros(20)
     priority[[3, 11]] = [2.0, 1.0]
     candidates = np.array([[-1.0], [0.0], [1.0]])
-    im = imagine_transitions(
-        S, A, R, S2, np.zeros(20, dtype=bool), units=np.array([0.2, 1.0]),
-        periods=np.zeros(2), candidates=candidates, priority=priority, budget=4, eps=0.3,
-    )  # fmt: skip
+    stored = Transitions(S, A, R, S2, np.zeros(20, dtype=bool))
+    model = GraphModel(units=np.array([0.2, 1.0]), periods=np.zeros(2), eps=0.3)
+    im = imagine_transitions(stored, model, candidates, priority, budget=4)
     assert len(im) == 4
     np.testing.assert_array_equal(im.states[:, 0], S[[3, 3, 11, 11], 0])
     np.testing.assert_array_equal(im.actions[:, 0], [-1.0, 1.0, -1.0, 1.0])  # 0 was taken
-    assert len(imagine_transitions(
-        S, A, R, S2, np.zeros(20, dtype=bool), units=np.array([0.2, 1.0]),
-        periods=np.zeros(2), candidates=candidates, priority=priority, budget=0, eps=0.3,
-    )) == 0  # fmt: skip
+    assert len(imagine_transitions(stored, model, candidates, priority, budget=0)) == 0
     with pytest.raises(ValueError, match="eps"):
         link_radius(1.0)
 
@@ -157,7 +152,7 @@ def test_replay_converges_to_the_optimal_values_of_a_known_task(replay: str) -> 
     assert np.max(err) < 0.6, err
     assert np.mean(err) < 0.25, err
     if replay == "graph":
-        assert agent.imagined_counts and max(agent.imagined_counts) > 0
+        assert agent.log.imagined_counts and max(agent.log.imagined_counts) > 0
 
 
 def test_graph_replay_is_reproducible_and_never_moves_predict_without_learn() -> None:
@@ -181,7 +176,7 @@ def test_graph_replay_runs_with_the_graph_kernels(kernel: str) -> None:
         max_bv=20,
         replay="graph",  # type: ignore[arg-type]
     ).learn(80)
-    assert max(agent.imagined_counts) > 0
+    assert max(agent.log.imagined_counts) > 0
     assert np.all(np.isfinite(agent.buffer.targets()))
     actions, _ = agent.predict(np.linspace(-1, 1, 5)[:, None])
     assert np.all(np.abs(actions) <= 1.0)

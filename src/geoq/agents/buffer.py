@@ -9,7 +9,32 @@ import numpy as np
 
 from geoq._typing import FloatArray
 
-__all__ = ["EpisodeRecord", "TransitionBuffer"]
+__all__ = ["EpisodeRecord", "TransitionBuffer", "Transitions"]
+
+
+@dataclass(frozen=True)
+class Transitions:
+    """Transitions ``(s, a, r, s', terminated)`` as arrays ``[N, d_s]``, ``[N, d_a]``,
+    ``[N]``, ``[N, d_s]``, ``[N]`` (bool)."""
+
+    states: FloatArray
+    actions: FloatArray
+    rewards: FloatArray
+    next_states: FloatArray
+    terminated: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.rewards.shape[0])
+
+    def then(self, other: Transitions) -> Transitions:
+        """These transitions followed by ``other``'s."""
+        return Transitions(
+            np.vstack([self.states, other.states]),
+            np.vstack([self.actions, other.actions]),
+            np.concatenate([self.rewards, other.rewards]),
+            np.vstack([self.next_states, other.next_states]),
+            np.concatenate([self.terminated, other.terminated]),
+        )
 
 
 class TransitionBuffer:
@@ -74,6 +99,10 @@ class TransitionBuffer:
         lo = 0 if last is None else max(self._n - int(last), 0)
         sl = slice(lo, self._n)
         return self._s[sl], self._a[sl], self._r[sl], self._s2[sl], self._term[sl]
+
+    def transitions(self, last: int | None = None) -> Transitions:
+        """The (most recent ``last``) transitions as a :class:`Transitions` of views."""
+        return Transitions(*self.arrays(last))
 
     def targets(self, last: int | None = None) -> FloatArray:
         """Copy of the current targets ``[N]`` (of the ``last`` most recent transitions)."""

@@ -6,13 +6,15 @@ Saved with every agent and reported with every result; ``as_dict`` /
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any, Literal
 
 import numpy as np
 
+from geoq._typing import FloatArray
+from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
-from geoq.learners.q_gp import KERNEL_NAMES, KernelName
+from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
 
 __all__ = [
     "HYPERPARAMETERS",
@@ -22,7 +24,6 @@ __all__ = [
     "Hyperparameters",
     "Prior",
     "Replay",
-    "check_int",
     "default_max_bv",
 ]
 
@@ -49,9 +50,10 @@ class GPQConfig:
     O(max_bv^3): measured 46-76 ms per step at 400 BVs, 314-329 ms at 800 (TwoRooms),
     11-22 ms at 200; consider ``max_bv=200`` with it (README, replay table)."""
     max_bv: int | None = None
-    """Basis-vector budget of the sparse online GP. ``None``: :func:`default_max_bv` of
-    the input dimension ``d_s + d_a`` (400 up to 3 inputs, 800 beyond), resolved by
-    :class:`GPQAgent`, whose ``config`` holds the number."""
+    """Basis-vector budget of the sparse online GP, in ``[1, 5000]``. ``None``:
+    :func:`default_max_bv` of the input dimension ``d_s + d_a`` (400 up to 3 inputs,
+    800 beyond), resolved by :meth:`for_dims`; a :class:`GPQAgent`'s ``config`` holds
+    the number."""
     gamma: float = 0.98
     """Discount factor."""
     exploration: Exploration = "ucb"
@@ -66,7 +68,7 @@ class GPQConfig:
     """Observation-noise variance of the standardised targets."""
     lengthscale: float | tuple[float, ...] | None = None
     """Squared-exponential length-scale(s) in scaled input units (``euclidean``); a
-    tuple has one entry per input dimension ``d_s + d_a``. ``None``: the rule
+    sequence (stored as a tuple) has one entry per input dimension ``d_s + d_a``. ``None``: the rule
     ``state_lengthscale`` for every state dimension, ``action_lengthscale`` for
     every action dimension."""
     state_lengthscale: float = 0.15
@@ -88,7 +90,7 @@ class GPQConfig:
     transitions. The rule's values are the first start. Only the length-scales are
     taken: ``amplitude`` and ``noise`` define the prior over values never seen (the
     optimism that drives exploration), which the evidence of the visited ones does
-    not inform. Each fit is recorded in ``GPQAgent.evidence_fits``. The default is
+    not inform. Each fit is recorded in ``GPQAgent.log.evidence_fits``. The default is
     ``rule``: on the swing-up the evidence's length-scales learned worse
     (docs/design-notes.md)."""
     amplitude: float = 1.0
@@ -145,7 +147,7 @@ class GPQConfig:
     set from the states seen (:func:`geoq.tasks.data_scaling`) and learning starts
     on them. As exploration widens, a fitted-Q phase that finds the states' spread
     grown past ``RESCALE_FACTOR`` (1.5) x a scale rescales and rebuilds the GP from
-    the stored transitions (counted in ``GPQAgent.rescales``). Unused when every
+    the stored transitions (counted in ``GPQAgent.log.rescales``). Unused when every
     bound is finite."""
     replay_budget: int = 500
     """Largest number of imagined transitions per fitted-Q phase (``replay="graph"``)."""
@@ -176,14 +178,18 @@ class GPQConfig:
     ``empirical``: mean and std of the current targets."""
 
     def __post_init__(self) -> None:
-        if self.kernel not in KERNEL_NAMES:
-            raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
-        if self.replay not in REPLAYS:
-            raise ValueError(f"replay must be one of {REPLAYS}, got {self.replay!r}")
-        if self.hyperparameters not in HYPERPARAMETERS:
-            raise ValueError(
-                f"hyperparameters must be one of {HYPERPARAMETERS}, got {self.hyperparameters!r}"
-            )
+        """Every rule of every field, checked once, here; NumPy scalars become Python ones
+        (a config is saved as JSON)."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.generic):
+                object.__setattr__(self, f.name, value.item())
+        for name, allowed in (
+            ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
+            ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
+        ):  # fmt: skip
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
         if self.hyperparameters == "evidence" and self.kernel != "euclidean":
             raise ValueError(
                 "hyperparameters='evidence' fits squared-exponential length-scales: it needs "
@@ -191,38 +197,56 @@ class GPQConfig:
                 "positive definite (or, for 'resistance', has no length-scale per input): "
                 "use hyperparameters='rule' and set eps / sigma_sp / resistance_lengthscale"
             )
-        if self.prior not in PRIORS:
-            raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
-        if self.exploration not in EXPLORATION_MODES:
-            raise ValueError(
-                f"exploration must be one of {EXPLORATION_MODES}, got {self.exploration!r}"
-            )
         if self.max_bv is not None:
-            check_int(self.max_bv, "max_bv", 1)
-        check_int(self.n_candidates, "n_candidates", 3)
-        check_int(self.train_every, "train_every", 1)
-        check_int(self.max_sweeps, "max_sweeps", 0)
-        check_int(self.window, "window", 1)
-        check_int(self.replay_budget, "replay_budget", 0)
-        check_int(self.warmup_steps, "warmup_steps", 1)
-        if not (isinstance(self.replay_eps, int | float) and 0.0 < self.replay_eps < 1.0):
-            raise ValueError(f"replay_eps must be in (0, 1), got {self.replay_eps!r}")
-        if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma < 1.0):
-            raise ValueError(f"gamma must be in [0, 1), got {self.gamma!r}")
+            check_budget(self.max_bv)
+        for name, minimum in (
+            ("n_candidates", 3), ("train_every", 1), ("max_sweeps", 0), ("window", 1),
+            ("replay_budget", 0), ("warmup_steps", 1),
+        ):  # fmt: skip
+            check_int(getattr(self, name), name, minimum)
+        check_real(self.replay_eps, "replay_eps", low=0.0, high=1.0, low_open=True, high_open=True)
+        check_real(self.gamma, "gamma", low=0.0, high=1.0, high_open=True)
+        check_real(self.tol, "tol", low=0.0, high=1.0)
         for name in ("beta", "action_noise", "train_fraction"):
-            _check_real(getattr(self, name), name, strict=False)
+            check_real(getattr(self, name), name, low=0.0)
         for name in ("noise", "amplitude", "eps", "sigma_sp", "sigma_se",
                      "resistance_lengthscale", "sweep_tol", "state_lengthscale",
                      "action_lengthscale"):  # fmt: skip
-            _check_real(getattr(self, name), name, strict=True)
-        if not 0.0 <= self.tol <= 1.0:
-            raise ValueError(f"tol must be in [0, 1], got {self.tol!r}")
+            check_real(getattr(self, name), name, low=0.0, low_open=True)
         for name in ("reward_bounds", "terminal_reward_bounds"):
-            _check_bounds(getattr(self, name), name)
-        if self.lengthscale is not None:
-            ls = np.atleast_1d(np.asarray(self.lengthscale, dtype=np.float64))
-            if not (np.all(np.isfinite(ls)) and np.all(ls > 0)):
-                raise ValueError(f"lengthscale must be finite and > 0, got {self.lengthscale!r}")
+            object.__setattr__(self, name, _bounds(getattr(self, name), name))
+        object.__setattr__(self, "lengthscale", _lengthscale(self.lengthscale))
+
+    def for_dims(self, obs_dim: int, action_dim: int) -> GPQConfig:
+        """This config for a task of ``obs_dim`` observations and ``action_dim`` actions:
+        ``max_bv`` resolved (:func:`default_max_bv`), ``lengthscale``'s length checked."""
+        d = check_int(obs_dim, "obs_dim", 1) + check_int(action_dim, "action_dim", 1)
+        ls = self.lengthscale
+        if isinstance(ls, tuple) and len(ls) not in (1, d):
+            raise ValueError(
+                f"lengthscale has {len(ls)} entries; expected 1 or {d} "
+                "(one per observation and action dimension)"
+            )
+        return self if self.max_bv is not None else replace(self, max_bv=default_max_bv(d))
+
+    def make_kernel(
+        self, lengthscale: float | tuple[float, ...], period: FloatArray | None
+    ) -> Kernel:
+        """A fresh kernel of these settings (:func:`geoq.kernels.make_kernel`) with the given
+        squared-exponential ``lengthscale`` and input periods (scaled units; None: none)."""
+        return make_kernel(
+            self.kernel, lengthscale=lengthscale, amplitude=self.amplitude, eps=self.eps,
+            sigma_sp=self.sigma_sp, sigma_se=self.sigma_se,
+            resistance_lengthscale=self.resistance_lengthscale, period=period,
+            attach_weights=self.kernel == "interpolated",
+        )  # fmt: skip
+
+    def rule_lengthscale(self, obs_dim: int, action_dim: int) -> float | tuple[float, ...]:
+        """The squared exponential's length-scale(s) by the rule: ``lengthscale``, or
+        ``state_lengthscale`` per observation and ``action_lengthscale`` per action."""
+        if self.lengthscale is None:
+            return (self.state_lengthscale,) * obs_dim + (self.action_lengthscale,) * action_dim
+        return self.lengthscale
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-able representation."""
@@ -239,11 +263,7 @@ class GPQConfig:
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
-        d = dict(data)
-        for name in ("lengthscale", "reward_bounds", "terminal_reward_bounds"):
-            if isinstance(d.get(name), list):
-                d[name] = tuple(d[name])
-        return cls(**d)
+        return cls(**data)
 
 
 def default_max_bv(input_dim: int) -> int:
@@ -259,29 +279,32 @@ def default_max_bv(input_dim: int) -> int:
     return BUDGET_BASE * (2 if input_dim > BUDGET_BASE_DIM else 1)
 
 
-def check_int(value: Any, name: str, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def _check_bounds(rb: Any, name: str) -> None:
+def _bounds(rb: Any, name: str) -> tuple[float, float] | None:
     if rb is None:
-        return
-    ok = (
-        isinstance(rb, tuple | list)
-        and len(rb) == 2
-        and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v) for v in rb
-        )
-    )
-    if not ok or rb[0] > rb[1]:
+        return None
+    ok = isinstance(rb, tuple | list | np.ndarray) and np.ndim(rb) == 1 and len(rb) == 2
+    try:
+        pair = tuple(check_real(v, name) for v in rb) if ok else ()
+    except ValueError:
+        ok = False
+    if not ok or pair[0] > pair[1]:
         raise ValueError(
             f"{name} must be two finite numbers (r_min, r_max) with r_min <= r_max, got {rb!r}"
         )
+    return (pair[0], pair[1])
 
 
-def _check_real(value: Any, name: str, *, strict: bool) -> None:
-    ok = isinstance(value, int | float | np.floating) and not isinstance(value, bool)
-    if not ok or not np.isfinite(value) or value < 0 or (strict and value == 0):
-        bound = "> 0" if strict else ">= 0"
-        raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
+def _lengthscale(ls: Any) -> float | tuple[float, ...] | None:
+    """``None``, one length-scale, or a tuple of them (from any sequence or array)."""
+    if ls is None:
+        return None
+    values = np.asarray(ls, dtype=object).ravel() if np.ndim(ls) else [ls]
+    try:
+        checked = tuple(check_real(v, "lengthscale", low=0.0, low_open=True) for v in values)
+    except ValueError:
+        raise ValueError(
+            f"lengthscale must be finite and > 0 (one number, or one per input), got {ls!r}"
+        ) from None
+    if not checked or np.ndim(ls) > 1:
+        raise ValueError(f"lengthscale must be one number or a flat sequence, got {ls!r}")
+    return checked if np.ndim(ls) else checked[0]

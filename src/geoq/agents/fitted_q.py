@@ -44,112 +44,36 @@ rewards are standardised with the same affine map, so
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TypeAlias
 
 import numba
 import numpy as np
 
 from geoq._typing import FloatArray, IntArray
-from geoq.gp import ProjectedSystem
+from geoq.agents._candidates import (
+    CandidateCovariances,
+    DenseCandidates,
+    SeparableBest,
+    SeparableCandidates,
+)
+from geoq.agents._covariance_cache import NextStateCovariances, separable_factors
+from geoq.agents.buffer import Transitions
+from geoq.agents.config import GPQConfig
+from geoq.agents.replay import ReplayStrategy
+from geoq.gp import ProjectedSystem, SparseOnlineGP
+from geoq.learners.scaling import InputScaling
 
 __all__ = [
     "CandidateCovariances",
     "DenseCandidates",
+    "FittedQPhase",
     "FittedQResult",
+    "PhaseInputs",
+    "PhaseResult",
     "SeparableBest",
     "SeparableCandidates",
     "fitted_q_sweeps",
+    "standardisation",
 ]
-
-
-@dataclass(frozen=True)
-class DenseCandidates:
-    """``k([s'_i, a_k], BV)`` as one matrix ``[N K, S]``, row-major over ``(i, k)``."""
-
-    matrix: FloatArray
-    n_candidates: int
-
-    @property
-    def n_columns(self) -> int:
-        return int(self.matrix.shape[1])
-
-    def q(self, weights: FloatArray) -> FloatArray:
-        """``K' weights`` as ``[N, K]`` (``weights`` ``[S]``)."""
-        return (self.matrix @ weights).reshape(-1, self.n_candidates)
-
-    def restrict(self, top: IntArray) -> DenseCandidates:
-        """The rows of candidates ``top`` ``[N, n]`` of each transition (one flat gather, so
-        the mat-vec of :meth:`q` gives each row the bits of the full one)."""
-        N, n = top.shape
-        rows = np.arange(N)[:, None] * self.n_candidates + top
-        return DenseCandidates(self.matrix.take(rows.ravel(), axis=0), n)
-
-
-@dataclass(frozen=True)
-class SeparableCandidates:
-    """``k([s'_i, a_k], BV_j) = state[i, j] * action[k, j]`` (a product kernel).
-
-    Attributes
-    ----------
-    state : ``k_s(s'_i, BV_j)`` ``[N, S]`` (the kernel's variance included).
-    action : ``k_a(a_k, BV_j)`` ``[K, S]``.
-    """
-
-    state: FloatArray
-    action: FloatArray
-
-    @property
-    def n_candidates(self) -> int:
-        return int(self.action.shape[0])
-
-    @property
-    def n_columns(self) -> int:
-        return int(self.state.shape[1])
-
-    def q(self, weights: FloatArray) -> FloatArray:
-        """``Q`` ``[N, K]``: ``state diag(weights) action^T``, one matrix product."""
-        return self.state @ (weights[:, None] * self.action.T)
-
-    def restrict(self, top: IntArray) -> SeparableBest:
-        """The candidates ``top`` ``[N, n]`` of each transition only."""
-        return SeparableBest(self.state, self.action, np.ascontiguousarray(top, dtype=np.intp))
-
-
-@dataclass(frozen=True)
-class SeparableBest:
-    """:class:`SeparableCandidates` restricted to candidates ``top[i]`` ``[N, n]`` of each
-    transition: ``q(w)[i, c] = sum_j state[i, j] w_j action[top[i, c], j]``, compiled,
-    without forming the ``[N n, S]`` rows (a fresh array per full sweep cost 1.6-9 ms at
-    N = 1,000; the loop costs about 0.3 ms)."""
-
-    state: FloatArray
-    action: FloatArray
-    top: IntArray
-
-    def q(self, weights: FloatArray) -> FloatArray:
-        """``Q`` ``[N, n]`` of the kept candidates."""
-        return _best_q(self.state, self.action * weights, self.top)
-
-
-@numba.njit(cache=True, nogil=True, fastmath={"reassoc"})
-def _best_q(
-    state: FloatArray, weighted_action: FloatArray, top: IntArray
-) -> FloatArray:  # pragma: no cover - compiled
-    """``out[i, c] = state[i] . weighted_action[top[i, c]]`` (``reassoc``: a vectorised sum)."""
-    N, n = top.shape
-    out = np.empty((N, n))
-    for i in range(N):
-        for c in range(n):
-            row = weighted_action[top[i, c]]
-            acc = 0.0
-            for j in range(state.shape[1]):
-                acc += state[i, j] * row[j]
-            out[i, c] = acc
-    return out
-
-
-#: The covariances of next states x candidates with the basis, in either form.
-CandidateCovariances: TypeAlias = DenseCandidates | SeparableCandidates
 
 
 @dataclass(frozen=True)
@@ -304,3 +228,147 @@ def _best_candidates(q: FloatArray, n: int) -> IntArray:  # pragma: no cover - c
                     if q[i, top[i, c]] < q[i, top[i, low]]:
                         low = c
     return top
+
+
+def standardisation(y: FloatArray, bounds: tuple[float, float], prior: str) -> tuple[float, float]:
+    """``(y_mean, y_scale)`` of targets ``y`` for a prior (:attr:`GPQConfig.prior`)."""
+    lo, hi = bounds
+    floor = 1e-6 * max(abs(lo), abs(hi), 1.0)  # all rewards equal: keep a positive scale
+    if prior == "empirical":
+        return float(np.mean(y)), max(float(np.std(y)), floor)
+    half = max(0.5 * (hi - lo), floor)
+    return (hi if prior == "optimistic" else 0.5 * (lo + hi)), half
+
+
+@dataclass(frozen=True)
+class PhaseInputs:
+    """What a fitted-Q phase reads of the agent (one record per phase).
+
+    Attributes
+    ----------
+    gp : the agent's GP (the phase refits it).
+    stored : the window's transitions (``N``), oldest first.
+    targets : their last targets ``[N]``, clipped to ``bounds`` (the warm start).
+    n_seen : transitions stored in all (the window's first is number ``n_seen - N``).
+    scaling, candidates, obs_dim : the agent's input scaling, candidate actions
+        ``[K, d_a]`` and observation size.
+    lengthscale : the squared exponential's length-scale per input ``[d]`` (graph units).
+    obs_low, obs_high : the observation space's bounds ``[d_s]`` (None: not a Box).
+    y_mean, y_scale, bounds : the standardisation in use and the value bounds.
+    """
+
+    gp: SparseOnlineGP
+    stored: Transitions
+    targets: FloatArray
+    n_seen: int
+    scaling: InputScaling
+    candidates: FloatArray
+    obs_dim: int
+    lengthscale: FloatArray
+    obs_low: FloatArray | None
+    obs_high: FloatArray | None
+    y_mean: float
+    y_scale: float
+    bounds: tuple[float, float]
+
+    def inputs(self, data: Transitions) -> FloatArray:
+        """Scaled GP inputs ``[n, d]`` of ``data``'s state-action pairs."""
+        return self.scaling.transform(np.hstack([data.states, data.actions]))
+
+
+@dataclass(frozen=True)
+class PhaseResult:
+    """Outcome of a fitted-Q phase: new targets of the stored transitions (None: a phase
+    without sweeps keeps them), the new standardisation, the sweeps, the last sweep's
+    largest change and the number of imagined transitions (None: no graph replay)."""
+
+    targets: FloatArray | None
+    y_mean: float
+    y_scale: float
+    sweeps: int
+    residual: float
+    imagined: int | None
+
+
+class FittedQPhase:
+    """One fitted-Q phase (module docstring): a replay strategy adds transitions, the
+    sweeps re-bootstrap every target on the GP's current basis, the GP is refit.
+
+    It owns what lives from phase to phase: the next states' covariances with the
+    basis (:class:`NextStateCovariances`) and the replay strategy, chosen once.
+    """
+
+    def __init__(self, config: GPQConfig, replay: ReplayStrategy) -> None:
+        self.config = config
+        self.replay = replay
+        self.covariances = NextStateCovariances(config.max_bv or 0)
+
+    def run(self, inp: PhaseInputs) -> PhaseResult | None:
+        """The phase on ``inp`` (the GP refit in place); None while the basis is empty."""
+        c, gp = self.config, inp.gp
+        data, y0, imagined = inp.stored, inp.targets, None
+        if gp.n_bv > 0:
+            data, y0, imagined = self.replay.extend(self, inp)
+        if gp.n_bv == 0:
+            return None
+        # V = R^{-T} K_BX and B^{-1} on a fresh factor of the current K_BV (a graph kernel's
+        # follows its graph), formed once: every sweep and the final refit use them.
+        system = gp.projected_system(inp.inputs(data))
+        if not self.replay.sweeps:  # no re-bootstrapping: refit to the online targets
+            y_mean, y_scale = standardisation(y0, inp.bounds, c.prior)
+            gp.refit_projected(system, (y0 - y_mean) / y_scale)
+            return PhaseResult(None, y_mean, y_scale, 0, 0.0, imagined)
+        N = len(inp.stored)
+        K_next, slots = self.next_state_covariances(inp, data.next_states, N)
+        result = fitted_q_sweeps(
+            system, K_next, data.rewards, 1.0 - data.terminated.astype(np.float64), c.gamma,
+            y0, y_mean=inp.y_mean, y_scale=inp.y_scale, max_sweeps=c.max_sweeps,
+            tol=c.sweep_tol * inp.y_scale, bounds=inp.bounds, slots=slots,
+        )  # fmt: skip
+        y = result.targets[:N]
+        y_mean, y_scale = standardisation(y, inp.bounds, c.prior)
+        # The posterior the agent acts with is fit to the stored transitions only: imagined
+        # ones (replay="graph") shape their targets, not the uncertainty that drives
+        # exploration (docs/design-notes.md).
+        stored = system if system.n_inputs == N else system.head(N)
+        gp.refit_projected(stored, (y - y_mean) / y_scale)
+        return PhaseResult(y, y_mean, y_scale, result.sweeps, result.max_change, imagined)
+
+    def next_state_covariances(
+        self, inp: PhaseInputs, S2: FloatArray, n_stored: int
+    ) -> tuple[CandidateCovariances, IntArray]:
+        """``k([s'_i, a_k], BV)`` for the next states ``S2`` x candidates, basis vector ``j``
+        in column ``slots[j]``, and ``slots`` ``[m]``. The first ``n_stored`` next states
+        are the stored transitions', kept from phase to phase where the kernel allows
+        (only their state factor, the squared exponential being a product of a state and
+        an action factor), the rest imagined ones (computed)."""
+        kernel, bv = inp.gp.kernel, inp.gp.basis_vectors
+        n_cand, d_s = inp.candidates.shape[0], inp.obs_dim
+        factors = None if kernel.tracks_basis else separable_factors(kernel, d_s)
+        if factors is None:
+            dense = kernel.to_basis(inp.scaling.transform_pairs(S2, inp.candidates), bv)
+            return DenseCandidates(dense, n_cand), np.arange(bv.shape[0])
+        state, action = factors
+        scale = np.asarray(inp.scaling.scale, dtype=np.float64)
+        K_state, slots = self.covariances.get(
+            state, lambda X: X / scale[:d_s], S2[:n_stored], inp.n_seen - n_stored, bv,
+            1, scratch_states=S2[n_stored:] if len(S2) > n_stored else None,
+        )  # fmt: skip
+        K_action = np.zeros((n_cand, K_state.shape[1]))
+        K_action[:, slots] = action.to_basis(
+            inp.candidates / scale[d_s:], np.ascontiguousarray(bv[:, d_s:])
+        )
+        return SeparableCandidates(K_state, K_action), slots
+
+    def stored_next_q(self, inp: PhaseInputs) -> FloatArray:
+        """Posterior mean of ``Q`` ``[N, K]`` at the stored next states x candidates: the
+        GP's prediction up to rounding, but from the kept covariances (no kernel
+        evaluation) where the kernel allows."""
+        gp, S2 = inp.gp, inp.stored.next_states
+        if gp.kernel.tracks_basis:
+            mean = gp.predict(inp.scaling.transform_pairs(S2, inp.candidates))
+            return (inp.y_mean + inp.y_scale * mean).reshape(S2.shape[0], -1)
+        K_next, slots = self.next_state_covariances(inp, S2, len(S2))
+        weights = np.zeros(K_next.n_columns)
+        weights[slots] = gp.alpha
+        return inp.y_mean + inp.y_scale * K_next.q(weights)

@@ -49,30 +49,18 @@ from scipy.spatial import cKDTree
 
 from geoq._geometry import wrap_difference
 from geoq._typing import FloatArray
+from geoq.agents.buffer import Transitions
 
-__all__ = ["ImaginedTransitions", "imagine_transitions", "link_radius"]
+__all__ = ["GraphModel", "ImaginedTransitions", "imagine_transitions", "link_radius"]
 
 
 @dataclass(frozen=True)
-class ImaginedTransitions:
-    """Transitions predicted by the graph model (``n <= budget`` rows).
+class ImaginedTransitions(Transitions):
+    """Transitions predicted by the graph model (``n <= budget`` rows): a
+    :class:`~geoq.agents.buffer.Transitions` record, and ``n_linked`` ``[n]``, the number of
+    graph nodes linked to each imagined pair."""
 
-    Attributes
-    ----------
-    states, actions, rewards, next_states, terminated : ``[n, d_s]``, ``[n, d_a]``,
-        ``[n]``, ``[n, d_s]``, ``[n]`` (bool).
-    n_linked : number of graph nodes linked to each imagined pair ``[n]``.
-    """
-
-    states: FloatArray
-    actions: FloatArray
-    rewards: FloatArray
-    next_states: FloatArray
-    terminated: np.ndarray
     n_linked: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.rewards.shape[0])
 
 
 def link_radius(eps: float) -> float:
@@ -82,43 +70,58 @@ def link_radius(eps: float) -> float:
     return float(np.sqrt(-2.0 * np.log(eps)))
 
 
+@dataclass(frozen=True)
+class GraphModel:
+    """The graph's dynamics model: how stored transitions are linked and what they predict.
+
+    Attributes
+    ----------
+    units : length of one graph unit per raw input dimension ``[d_s + d_a]``
+        (the agent's scale x length-scale): distances are measured in these.
+    periods : wrap-around period of each raw input dimension ``[d_s + d_a]`` (0 = none).
+    eps : JC12 eq. 2 threshold, in ``(0, 1)``.
+    max_links : at most this many linked nodes (the nearest) predict an outcome.
+    ridge : penalty on the local model's slopes (per graph unit).
+    obs_low, obs_high : observation bounds ``[d_s]``; imagined next states are clipped
+        to the finite ones.
+    """
+
+    units: FloatArray
+    periods: FloatArray
+    eps: float
+    max_links: int = 16
+    ridge: float = 0.1
+    obs_low: FloatArray | None = None
+    obs_high: FloatArray | None = None
+
+
 def imagine_transitions(
-    S: FloatArray,
-    A: FloatArray,
-    R: FloatArray,
-    S2: FloatArray,
-    terminated: np.ndarray,
-    *,
-    units: FloatArray,
-    periods: FloatArray,
+    stored: Transitions,
+    model: GraphModel,
     candidates: FloatArray,
     priority: FloatArray,
     budget: int,
-    eps: float,
-    max_links: int = 16,
-    ridge: float = 0.1,
-    obs_low: FloatArray | None = None,
-    obs_high: FloatArray | None = None,
 ) -> ImaginedTransitions:
     """Imagine the untried candidate actions of the highest-priority stored states.
 
     Parameters
     ----------
-    S, A, R, S2, terminated : the stored transitions ``[N, d_s]``, ``[N, d_a]``,
-        ``[N]``, ``[N, d_s]``, ``[N]``.
-    units : length of one graph unit per raw input dimension ``[d_s + d_a]``
-        (the agent's scale x length-scale): distances are measured in these.
-    periods : wrap-around period of each raw input dimension ``[d_s + d_a]`` (0 = none).
+    stored : the stored transitions (``N`` of them).
+    model : how they are linked and what the links predict.
     candidates : the agent's candidate actions ``[K, d_a]``.
     priority : per stored transition ``[N]``; sources are taken in decreasing
         priority (ties: the later transition first).
     budget : largest number of imagined transitions.
-    eps : JC12 eq. 2 threshold, in ``(0, 1)``.
-    max_links : at most this many linked nodes (the nearest) predict an outcome.
-    ridge : penalty on the local model's slopes (per graph unit).
-    obs_low, obs_high : observation bounds; imagined next states are clipped
-        to the finite ones.
     """
+    S, A, R, S2 = stored.states, stored.actions, stored.rewards, stored.next_states
+    terminated = stored.terminated
+    units, periods, eps = model.units, model.periods, model.eps
+    max_links, ridge, obs_low, obs_high = (
+        model.max_links,
+        model.ridge,
+        model.obs_low,
+        model.obs_high,
+    )
     N, d_s = S.shape
     d_a = A.shape[1]
     K = candidates.shape[0]

@@ -149,7 +149,7 @@ def control_cell(cell: ControlCell) -> dict[str, Any]:
     row["train_timesteps"] = [e.timesteps for e in agent.episodes]
     row["train_return"] = [e.ret for e in agent.episodes]
     row["n_bv"] = agent.gp.n_bv
-    row["train_seconds_per_episode"] = agent.train_seconds / max(len(agent.episodes), 1)
+    row["train_seconds_per_episode"] = agent.log.train_seconds / max(len(agent.episodes), 1)
     return row
 
 

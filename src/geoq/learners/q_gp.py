@@ -25,19 +25,24 @@ Choices the paper leaves open, made here and recorded in :class:`QGPConfig`:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
-from numbers import Integral, Real
 from typing import Any, Literal
 
 import numpy as np
 
+from geoq import kernels
 from geoq._typing import ArrayLike, FloatArray
-from geoq._validation import as_float_matrix, as_float_vector
+from geoq._validation import (
+    MAX_BUDGET,
+    as_float_matrix,
+    as_float_vector,
+    check_budget,
+    check_real,
+)
 from geoq.gp import SparseOnlineGP
 from geoq.gp.pd_novelty import PDNoveltyOnlineGP
-from geoq.kernels import GeodesicKernel, Kernel, ResistanceKernel, SquaredExponential
+from geoq.kernels import KERNEL_NAMES, PAPER_KERNELS, Kernel, KernelName
 from geoq.kernels.geodesic import GraphKernel
 from geoq.kernels.stationary import as_scale_vector
 from geoq.learners.scaling import PENDULUM_SCALING, InputScaling
@@ -52,15 +57,6 @@ __all__ = [
     "make_kernel",
 ]
 
-#: Largest basis budget a configuration accepts: a GP keeps a few [max_bv, max_bv] float64
-#: matrices (5000: ~200 MB each).
-MAX_BUDGET = 5000
-
-#: The paper's three kernels (the values of ``kernel`` in ``fig3.csv``).
-PAPER_KERNELS: tuple[str, ...] = ("euclidean", "nearest", "interpolated")
-#: Every kernel a learner can use: the paper's and the positive-definite graph kernel.
-KERNEL_NAMES: tuple[str, ...] = (*PAPER_KERNELS, "resistance")
-KernelName = Literal["euclidean", "nearest", "interpolated", "resistance"]
 RefitMode = Literal["none", "episode", "end"]
 
 
@@ -117,17 +113,11 @@ class QGPConfig:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {self.kernel!r}")
         if self.refit not in ("none", "episode", "end"):
             raise ValueError(f"refit must be 'none', 'episode' or 'end', got {self.refit!r}")
-        if isinstance(self.max_bv, bool) or not isinstance(self.max_bv, Integral):
-            raise ValueError(f"max_bv must be an integer >= 1, got {self.max_bv!r}")
-        if not 1 <= int(self.max_bv) <= MAX_BUDGET:
-            raise ValueError(
-                f"max_bv must be in [1, {MAX_BUDGET}] (a larger GP needs gigabytes), "
-                f"got {self.max_bv!r}"
-            )
-        _number(self.tol, "tol", low=0.0, high=1.0)
+        check_budget(self.max_bv)
+        check_real(self.tol, "tol", low=0.0, high=1.0)
         for name in ("noise", "amplitude", "sigma_sp", "sigma_se", "resistance_lengthscale"):
-            _number(getattr(self, name), name, low=0.0, low_open=True)
-        _number(self.eps, "eps", low=0.0, high=1.0, low_open=True, high_open=True)
+            check_real(getattr(self, name), name, low=0.0, low_open=True)
+        check_real(self.eps, "eps", low=0.0, high=1.0, low_open=True, high_open=True)
         for name in (
             "normalize_weights", "attach_weights", "wrap_angle", "temporal_edges",
             "pd_novelty", "standardize",
@@ -144,7 +134,7 @@ class QGPConfig:
                 f"{self.scaling.dim} (one per input dimension)"
             )
         for v in values:
-            _number(v, "lengthscale", low=0.0, low_open=True)
+            check_real(v, "lengthscale", low=0.0, low_open=True)
         try:
             as_scale_vector(np.asarray(values, dtype=np.float64), "lengthscale")
         except ValueError as exc:
@@ -190,7 +180,7 @@ def _scaling_from_dict(sc: Any) -> InputScaling:
         if not isinstance(sc[key], list | tuple):
             raise ValueError(f"scaling.{key} must be a list of numbers, got {sc[key]!r}")
         for v in sc[key]:
-            _number(v, f"scaling.{key}")
+            check_real(v, f"scaling.{key}")
     if not isinstance(sc["names"], list | tuple) or not all(
         isinstance(n, str) for n in sc["names"]
     ):
@@ -201,55 +191,19 @@ def _scaling_from_dict(sc: Any) -> InputScaling:
         raise ValueError(f"scaling: {exc}") from None
 
 
-def _number(
-    value: Any,
-    name: str,
-    *,
-    low: float | None = None,
-    high: float | None = None,
-    low_open: bool = False,
-    high_open: bool = False,
-) -> float:
-    """``value`` as a float if it is a finite real number (not a bool or a string) in range."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    below = low is not None and (v <= low if low_open else v < low)
-    above = high is not None and (v >= high if high_open else v > high)
-    if not math.isfinite(v) or below or above:
-        lo = "" if low is None else f"{'>' if low_open else '>='} {low:g}"
-        hi = "" if high is None else f"{'<' if high_open else '<='} {high:g}"
-        rng = " and ".join(p for p in (lo, hi) if p)
-        raise ValueError(f"{name} must be a finite number {rng}, got {value!r}")
-    return v
-
-
 def make_kernel(config: QGPConfig) -> Kernel:
-    """A fresh kernel for ``config`` (a geodesic kernel owns a graph: one per GP)."""
-    periods = config.scaling.scaled_periods() if config.wrap_angle else None
-    if config.kernel == "euclidean":
-        return SquaredExponential(
-            lengthscale=np.asarray(config.lengthscale, dtype=np.float64),
-            variance=config.amplitude,
-            period=periods,
-        )
-    if config.kernel == "resistance":
-        return ResistanceKernel(
-            eps=config.eps,
-            lengthscale=config.resistance_lengthscale,
-            amplitude=config.amplitude,
-            period=periods,
-            temporal_edges=config.temporal_edges,
-        )
-    return GeodesicKernel(
+    """A fresh kernel for ``config`` (:func:`geoq.kernels.make_kernel` of its fields)."""
+    return kernels.make_kernel(
+        config.kernel,
+        lengthscale=config.lengthscale,
+        amplitude=config.amplitude,
         eps=config.eps,
-        method=config.kernel,
         sigma_sp=config.sigma_sp,
         sigma_se=config.sigma_se,
-        amplitude=config.amplitude,
-        normalize=config.normalize_weights,
-        attach=config.attach_weights,
-        period=periods,
+        resistance_lengthscale=config.resistance_lengthscale,
+        period=config.scaling.scaled_periods() if config.wrap_angle else None,
+        normalize_weights=config.normalize_weights,
+        attach_weights=config.attach_weights,
         temporal_edges=config.temporal_edges,
     )
 

@@ -54,6 +54,17 @@ class InputScaling:
         Za = as_float_matrix(Z, "Z", self.dim)
         return Za / np.asarray(self.scale)
 
+    def transform_pairs(self, states: FloatArray, candidates: FloatArray) -> FloatArray:
+        """Scaled inputs ``[n K, d]`` of every state ``[n, d_s]`` paired with every candidate
+        action ``[K, d_a]``, row ``i K + k`` for ``(i, k)``: the bits of :meth:`transform`
+        of the pairs, built in place (no checks: for the agent's own float64 arrays)."""
+        n, K, d_s = states.shape[0], candidates.shape[0], states.shape[1]
+        scale = np.asarray(self.scale, dtype=np.float64)
+        X = np.empty((n * K, scale.shape[0]))
+        X[:, :d_s] = np.repeat(states / scale[:d_s], K, axis=0)
+        X[:, d_s:] = np.tile(candidates / scale[d_s:], (n, 1))
+        return X
+
     def inverse(self, X: ArrayLike) -> FloatArray:
         """Scaled inputs ``[N, d]`` -> raw inputs ``[N, d]``."""
         Xa = as_float_matrix(X, "X", self.dim)

@@ -22,6 +22,7 @@ __all__ = [
     "KNOWN_TASKS",
     "TaskInfo",
     "box_scaling",
+    "check_box_spaces",
     "data_scaling",
     "has_finite_bounds",
     "task_info",
@@ -131,6 +132,30 @@ def box_scaling(
     periods = (*info.periods, *(0.0,) * d_a)
     names = (*info.names, *(f"a{i}" for i in range(d_a)))
     return InputScaling(tuple(float(h) for h in half), periods, names)
+
+
+def check_box_spaces(
+    env: gymnasium.Env, who: str = "the task suite", finite_actions: bool = False
+) -> tuple[gymnasium.spaces.Box, gymnasium.spaces.Box]:
+    """The env's observation and action spaces, if both are 1-D Boxes (and the action
+    bounds finite, with ``finite_actions``); else a ``ValueError`` saying what ``who``
+    supports."""
+    obs, act = env.observation_space, env.action_space
+    name = env.spec.id if env.spec is not None else type(env).__name__
+    Box = gymnasium.spaces.Box
+    if not isinstance(obs, Box) or len(obs.shape) != 1:
+        raise ValueError(
+            f"{name}: {who} needs a 1-D Box observation space; got {obs!r} "
+            "(flatten Dict observations with gymnasium.wrappers.FlattenObservation)"
+        )
+    if not isinstance(act, Box) or len(act.shape) != 1:
+        raise ValueError(
+            f"{name}: {who} needs a 1-D Box action space (continuous actions); got {act!r}. "
+            "Discrete action spaces are not supported."
+        )
+    if finite_actions and not has_finite_bounds(act):
+        raise ValueError(f"{name}: {who} needs finite action bounds; got {act!r}")
+    return obs, act
 
 
 def has_finite_bounds(space: gymnasium.spaces.Box) -> bool:

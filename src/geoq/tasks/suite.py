@@ -37,7 +37,6 @@ from functools import partial
 
 import gymnasium
 import numpy as np
-from gymnasium import spaces
 
 from geoq._typing import FloatArray
 from geoq.envs import (
@@ -54,7 +53,7 @@ from geoq.envs import (
 from geoq.learners.scaling import InputScaling
 from geoq.policies import Policy, TwoRoomsWaypointPolicy, default_policy
 from geoq.rollouts import Rollout, StepFn
-from geoq.tasks import box_scaling, task_info
+from geoq.tasks import box_scaling, check_box_spaces, task_info
 from geoq.tasks.classic_control import (
     GymPendulumPolicy,
     MountainCarEnergyPolicy,
@@ -137,23 +136,6 @@ class SuiteTask:
     def observed(self, states: FloatArray) -> FloatArray:
         """Observations of internal states (the states themselves when ``observe`` is None)."""
         return states if self.observe is None else self.observe(states)
-
-
-def check_box_spaces(env: gymnasium.Env) -> tuple[spaces.Box, spaces.Box]:
-    """The env's observation and action spaces, if both are 1-D Boxes; else ``ValueError``."""
-    obs, act = env.observation_space, env.action_space
-    name = env.spec.id if env.spec is not None else type(env).__name__
-    if not isinstance(obs, spaces.Box) or len(obs.shape) != 1:
-        raise ValueError(
-            f"{name}: the task suite needs a 1-D Box observation space; got {obs!r} "
-            "(flatten Dict observations with gymnasium.wrappers.FlattenObservation)"
-        )
-    if not isinstance(act, spaces.Box) or len(act.shape) != 1:
-        raise ValueError(
-            f"{name}: the task suite needs a 1-D Box (continuous) action space; got {act!r}. "
-            "Discrete action spaces are not supported."
-        )
-    return obs, act
 
 
 def _scaling(env_id: str) -> InputScaling:

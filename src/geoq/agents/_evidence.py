@@ -1,0 +1,44 @@
+"""``hyperparameters="evidence"``: the agent's squared-exponential length-scales by
+maximum exact-GP evidence (:func:`geoq.gp.evidence.fit_squared_exponential`)."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from geoq._typing import FloatArray
+from geoq.gp.evidence import fit_squared_exponential
+from geoq.gp.numerics import NumericalWarning
+
+__all__ = ["EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "fit_lengthscales"]
+
+#: Points of each fit (O(n^3) per evaluation) and its random restarts beyond the warm
+#: start (the length-scales in use).
+EVIDENCE_POINTS = 300
+EVIDENCE_RESTARTS = 1
+
+
+def fit_lengthscales(
+    X: FloatArray, z: FloatArray, start: FloatArray, rng: np.random.Generator
+) -> tuple[tuple[float, ...], dict[str, Any]]:
+    """ARD length-scales ``[d]`` fitted to inputs ``X`` ``[n, d]`` and standardised targets
+    ``z`` ``[n]`` (at most :data:`EVIDENCE_POINTS`, drawn with ``rng``), from ``start``
+    ``[d]`` plus :data:`EVIDENCE_RESTARTS` random starts; and the fit's record
+    (transitions, length-scales, log evidence, convergence, bounds reached, and the
+    :class:`NumericalWarning` the fit raised)."""
+    d = X.shape[1]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NumericalWarning)
+        fit = fit_squared_exponential(
+            X, z, lengthscale0=start, ard=True, max_points=EVIDENCE_POINTS,
+            n_restarts=EVIDENCE_RESTARTS, rng=rng,
+        )  # fmt: skip
+    ls = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (d,)))
+    record = {
+        "transitions": len(z), "lengthscale": list(ls), "log_evidence": fit.log_evidence,
+        "log_evidence_start": fit.log_evidence_start, "converged": fit.converged,
+        "at_bound": list(fit.at_bound), "warnings": [str(w.message) for w in caught],
+    }  # fmt: skip
+    return ls, record

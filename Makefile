@@ -62,6 +62,7 @@ lint: install
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/ruff format --check src tests benchmarks
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 # The documentation site into build/site, warnings as errors. MkDocs + Material + mkdocstrings:
 # the pages stay Markdown that reads on GitHub as it is, and the API pages come from the

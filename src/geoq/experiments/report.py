@@ -1,15 +1,7 @@
 """REPORT.md: what the reproduction found, claim by claim, with intervals over seeds.
 
-Each of the paper's Fig. 3 claims is turned into a test on *paired*
-differences (the kernels of one seed see the same roll-outs and are scored on
-the same evaluation pairs), with Student-t 95% intervals over seeds:
-
-1. *geodesic better at small budgets*: ``MSE_geo - MSE_euc < 0`` at the
-   smallest budgets (the lowest third of the grid);
-2. *equal past a threshold*: the smallest budget from which on every interval
-   of the difference contains 0;
-3. *slower variance decrease*: ``NV_geo - NV_euc > 0``;
-4. *a band where it is worse*: budgets where ``MSE_geo - MSE_euc > 0``.
+The claims' tests and verdicts (paired differences by seed, Student-t 95% intervals)
+live in :mod:`geoq.experiments.claims`; they stay importable from here.
 """
 
 from __future__ import annotations
@@ -19,128 +11,29 @@ from typing import Any
 
 import numpy as np
 
+from geoq.experiments.claims import (
+    GRAPH_KERNELS,
+    POSTERIOR_COLUMNS,
+    ClaimVerdict,
+    _by,
+    assess_claims,
+    claim_verdicts,
+)
 from geoq.experiments.config import VARIANT_KERNELS, VARIANTS
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
-from geoq.experiments.stats import Interval, log_interval, mean_interval, paired_difference
+from geoq.experiments.stats import log_interval, mean_interval, paired_difference
 
-__all__ = ["POSTERIOR_COLUMNS", "ClaimVerdict", "assess_claims", "render_report"]
+__all__ = [
+    "POSTERIOR_COLUMNS",
+    "ClaimVerdict",
+    "assess_claims",
+    "claim_verdicts",
+    "render_report",
+]
 
-GRAPH_KERNELS = ("nearest", "interpolated", "resistance")
 #: A cell "diverged" when its MSE exceeds this multiple of the constant predictor's.
 DIVERGED = 10.0
-
-ClaimVerdict = dict[str, Any]
-
-
-def _by(
-    rows: Sequence[Mapping[str, Any]], kernel: str, budget: int, column: str
-) -> dict[int, float]:
-    return {
-        int(r["seed"]): float(r[column])
-        for r in rows
-        if r["kernel"] == kernel and int(r["max_bv"]) == budget
-    }
-
-
-def _paired(rows: Sequence[Mapping[str, Any]], kernel: str, budget: int, column: str) -> Interval:
-    a = _by(rows, kernel, budget, column)
-    b = _by(rows, "euclidean", budget, column)
-    seeds = sorted(set(a) & set(b))
-    return paired_difference([a[s] for s in seeds], [b[s] for s in seeds])
-
-
-#: Columns (MSE, normalised variance) of each posterior in ``fig3.csv``.
-POSTERIOR_COLUMNS = {
-    "online": ("mse", "normalized_variance"),
-    "refit": ("mse_refit", "normalized_variance_refit"),
-}
-
-
-def assess_claims(
-    rows: Sequence[Mapping[str, Any]], posterior: str = "online"
-) -> dict[str, list[ClaimVerdict]]:
-    """Per graph kernel, a verdict on each of the paper's four Fig. 3 claims.
-
-    ``posterior`` is ``"online"`` (the paper's online posterior) or ``"refit"``
-    (the DTC refit on the final BV set and graph).
-    """
-    mse_col, nv_col = POSTERIOR_COLUMNS[posterior]
-    budgets = sorted({int(r["max_bv"]) for r in rows})
-    n_small = max(1, len(budgets) // 3)
-    small = budgets[:n_small]
-    out: dict[str, list[ClaimVerdict]] = {}
-    for g in GRAPH_KERNELS:
-        if not any(r["kernel"] == g for r in rows):
-            continue
-        diff = {b: _paired(rows, g, b, mse_col) for b in budgets}
-        nv = {b: _paired(rows, g, b, nv_col) for b in budgets}
-        verdicts: list[ClaimVerdict] = []
-
-        better = [b for b in small if diff[b].high < 0]
-        worse_small = [b for b in small if diff[b].low > 0]
-        verdicts.append(
-            {
-                "claim": "the graph kernel has lower MSE at small budgets",
-                "verdict": "supported"
-                if len(better) == len(small)
-                else (
-                    "contradicted"
-                    if worse_small
-                    else ("partly supported" if better else "not supported")
-                ),
-                "evidence": {b: diff[b] for b in small},
-            }
-        )
-
-        threshold = next(
-            (
-                b
-                for i, b in enumerate(budgets)
-                if all(not diff[c].excludes_zero for c in budgets[i:])
-            ),
-            None,
-        )
-        verdicts.append(
-            {
-                "claim": "same MSE as the standard GP past a threshold budget",
-                "verdict": "consistent (no significant difference from the threshold on)"
-                if threshold is not None and threshold != budgets[0]
-                else (
-                    "no significant difference at any budget"
-                    if threshold == budgets[0]
-                    else "not supported"
-                ),
-                "threshold": threshold,
-                "evidence": {b: diff[b] for b in budgets[-max(1, len(budgets) // 3) :]},
-            }
-        )
-
-        higher = [b for b in budgets if nv[b].low > 0]
-        lower = [b for b in budgets if nv[b].high < 0]
-        verdicts.append(
-            {
-                "claim": "normalised variance decreases more slowly with the graph kernel",
-                "verdict": "supported"
-                if len(higher) > len(budgets) / 2
-                else ("contradicted" if len(lower) > len(budgets) / 2 else "mixed"),
-                "higher_at": higher,
-                "lower_at": lower,
-                "evidence": nv,
-            }
-        )
-
-        worse = [b for b in budgets if diff[b].low > 0]
-        verdicts.append(
-            {
-                "claim": "a band of budgets where the graph kernel is worse",
-                "verdict": "supported" if worse else "not supported",
-                "worse_at": worse,
-                "evidence": {b: diff[b] for b in budgets},
-            }
-        )
-        out[g] = verdicts
-    return out
 
 
 def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> list[str]:
@@ -209,15 +102,6 @@ def _diverged(rows: Sequence[Mapping[str, Any]], kernel: str) -> str:
     return f"`{kernel}` {online} online / {refit} refit of {len(sub)}"
 
 
-def _finite_enough(rows: Sequence[Mapping[str, Any]], kernel: str, posterior: str) -> bool:
-    """Whether every budget has >= 2 seeds with a finite MSE of ``kernel`` (else no test)."""
-    column = POSTERIOR_COLUMNS[posterior][0]
-    budgets = {int(r["max_bv"]) for r in rows if r["kernel"] == kernel}
-    return all(
-        sum(np.isfinite(v) for v in _by(rows, kernel, b, column).values()) >= 2 for b in budgets
-    )
-
-
 def _variant_lines(
     rows: Sequence[Mapping[str, Any]], variant_rows: Sequence[Mapping[str, Any]]
 ) -> list[str]:
@@ -265,11 +149,6 @@ def _variant_lines(
             + " (non-finite MSEs are left out of the intervals).",
             "",
         ]
-    verdicts = {
-        (v, posterior): assess_claims(sub, posterior)
-        for v, sub in by_variant.items()
-        for posterior in POSTERIOR_COLUMNS
-    }
     lines += [
         "### Do the paper's claims change?",
         "",
@@ -279,22 +158,11 @@ def _variant_lines(
         "| claim | posterior | kernel | " + " | ".join(["tuned", *names]) + " |",
         "|---" * (4 + len(names)) + "|",
     ]
-    claims = [c["claim"] for c in next(iter(verdicts[("tuned", "online")].values()), [])]
-    for i, claim in enumerate(claims):
-        for posterior in POSTERIOR_COLUMNS:
-            for g in GRAPH_KERNELS:
-                cells = [verdicts[(v, posterior)].get(g) for v in ("tuned", *names)]
-                if all(c is None for c in cells[1:]):
-                    continue
-                text = [
-                    "undetermined (MSE not finite)"
-                    if c is not None
-                    and "variance" not in claim  # the other three claims test MSEs
-                    and not _finite_enough(sub, g, posterior)
-                    else (c[i]["verdict"] if c is not None else "-")
-                    for c, sub in zip(cells, by_variant.values(), strict=True)
-                ]
-                lines.append(f"| {claim} | {posterior} | `{g}` | " + " | ".join(text) + " |")
+    for r in claim_verdicts(rows, variant_rows, tuned_only_kernels=False):
+        text = [r[v] for v in ("tuned", *names)]
+        lines.append(
+            f"| {r['claim']} | {r['posterior']} | `{r['kernel']}` | " + " | ".join(text) + " |"
+        )
     lines.append("")
     return lines
 

@@ -48,7 +48,7 @@ class GPQConfig:
     (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph). The
     resistance kernel re-factorises ``K_BV`` after every change of the basis set,
     O(max_bv^3): measured 46-76 ms per step at 400 BVs, 314-329 ms at 800 (TwoRooms),
-    11-22 ms at 200; consider ``max_bv=200`` with it (README, replay table)."""
+    11-22 ms at 200; consider ``max_bv=200`` with it (docs/results.md, the replay table)."""
     max_bv: int | None = None
     """Basis-vector budget of the sparse online GP, in ``[1, 5000]``. ``None``:
     :func:`default_max_bv` of the input dimension ``d_s + d_a`` (400 up to 3 inputs,

@@ -1,8 +1,17 @@
-"""Atomic file writes and versioned ``.npz`` archives.
+"""Atomic file writes, runs written whole, and versioned ``.npz`` archives.
 
 A result is either entirely on disk or not at all: every write goes to a
 temporary file in the destination directory, is flushed and fsync'ed, then
 renamed over the target (``os.replace`` is atomic on POSIX and Windows).
+
+What a write replaces (:func:`output_path`): a regular file, or the regular file a
+symbolic link points to (the link is written through and stays a link); a
+directory, a FIFO, a device or a socket is never replaced (``FileExistsError`` /
+``IsADirectoryError``). An existing file keeps its permission bits, as with
+``open(path, "w")``. A run of several files (:func:`staged_run`) is written into a
+staging directory first and moved into place only once every file is written, so
+a failure leaves the earlier run whole; writing over an earlier run needs
+``overwrite=True``.
 """
 
 from __future__ import annotations
@@ -10,10 +19,13 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
+import stat
 import tempfile
 import threading
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Collection, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -25,8 +37,11 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "check_run_dir",
     "load_archive",
+    "output_path",
     "save_archive",
+    "staged_run",
 ]
 
 #: Name of the entry that identifies a geoq archive and its format version.
@@ -48,19 +63,57 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temp file + fsync + rename).
+def output_path(path: str | os.PathLike[str]) -> Path:
+    """The regular file a write to ``path`` replaces: ``path`` itself, or, for a symbolic
+    link, the file it points to (followed to the end; it need not exist yet).
 
-    The file gets the mode a plain ``open(path, "w")`` would give it
-    (``0o666`` minus the umask), not the ``0o600`` of the temporary file.
+    Raises ``IsADirectoryError`` for a directory, ``FileExistsError`` for anything else
+    that is not a regular file (a FIFO, a device, a socket, a loop of links): geoq
+    replaces regular files only.
     """
-    target = Path(path)
-    if target.is_dir():
-        raise IsADirectoryError(f"{target} is a directory; give a file path")
+    p = Path(path)
+    if p.is_symlink():
+        resolved = Path(os.path.realpath(p))
+        if resolved.is_symlink():
+            raise FileExistsError(f"{p} is a loop of symbolic links; give a file path")
+        p = resolved
+    try:
+        mode = p.stat().st_mode
+    except FileNotFoundError:
+        return p
+    if stat.S_ISDIR(mode):
+        raise IsADirectoryError(f"{p} is a directory; give a file path")
+    if not stat.S_ISREG(mode):
+        kind = (
+            "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+        )
+        raise FileExistsError(
+            f"{p} exists and is {kind}, not a regular file; geoq replaces regular files only: "
+            "give another path"
+        )
+    return p
+
+
+def _file_mode(target: Path) -> int:
+    """The mode ``open(target, "w")`` leaves: an existing file's own, else 0o666 - umask."""
+    try:
+        return stat.S_IMODE(target.stat().st_mode)
+    except FileNotFoundError:
+        return 0o666 & ~_umask()
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temp file + fsync + rename); returns ``path``.
+
+    A symbolic link is written through (:func:`output_path`); the file gets the mode a
+    plain ``open(path, "w")`` would give it (an existing file keeps its own, a new one
+    ``0o666`` minus the umask), not the ``0o600`` of the temporary file.
+    """
+    target = output_path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
-        os.fchmod(fd, 0o666 & ~_umask())
+        os.fchmod(fd, _file_mode(target))
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -69,7 +122,73 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return target
+    return Path(path)
+
+
+def check_run_dir(out: str | os.PathLike[str], names: Collection[str], overwrite: bool) -> None:
+    """A ``FileExistsError`` unless ``out`` can receive a run of the files ``names``: it is
+    a directory or can be made one, and it holds none of them unless ``overwrite``."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a directory; give a directory")
+    earlier = sorted(n for n in names if (out / n).exists() or (out / n).is_symlink())
+    if earlier and not overwrite:
+        raise FileExistsError(
+            f"{out} holds an earlier run ({', '.join(earlier)}); give another directory, or "
+            "pass overwrite=True (--overwrite) to replace that run"
+        )
+
+
+@contextmanager
+def staged_run(
+    out: str | os.PathLike[str], names: Collection[str], *, overwrite: bool = False
+) -> Iterator[Path]:
+    """A directory to write a run's files into; on success they replace the run in ``out``.
+
+    ``names`` are the files a run of this kind may hold. The files written into the
+    staging directory (a hidden directory inside ``out``) are moved into ``out`` only
+    when the ``with`` block ends without an error, after every destination was
+    checked (:func:`output_path`); files of ``names`` the new run did not write are
+    then removed, so two runs never mix. On an error the staging directory is
+    removed and ``out`` is as it was (a directory made for the run is removed again).
+    """
+    out = Path(out)
+    check_run_dir(out, names, overwrite)
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(dir=out, prefix=".staging-"))
+    elsewhere: list[Path] = []  # copies next to targets outside out (written-through links)
+    try:
+        yield staging
+        written = sorted(p.name for p in staging.iterdir())
+        unknown = sorted(set(written) - set(names))
+        if unknown:
+            raise ValueError(f"files {unknown} are not part of this kind of run")
+        targets = {n: output_path(out / n) for n in written}
+        moves = []
+        for name, target in targets.items():  # every new file next to its target first
+            src = staging / name
+            if target.parent.resolve() != out.resolve():
+                fd, copy = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.")
+                os.close(fd)
+                elsewhere.append(Path(copy))
+                shutil.copyfile(src, copy)
+                src = Path(copy)
+            os.chmod(src, _file_mode(target))
+            moves.append((src, target))
+        for src, target in moves:  # then renames only
+            os.replace(src, target)
+        for name in sorted(set(names) - set(written)):
+            if (out / name).is_symlink() or (out / name).is_file():
+                (out / name).unlink()
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        for leftover in elsewhere:
+            leftover.unlink(missing_ok=True)
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    shutil.rmtree(staging, ignore_errors=True)
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
@@ -154,8 +273,10 @@ def load_archive(
     p = Path(path)
     if p.is_dir():
         raise ArchiveError(f"{p} is a directory, not a saved model; give the .npz file inside it")
-    if not p.is_file():
+    if not p.exists():
         raise ArchiveError(f"{p}: no such file")
+    if not p.is_file():
+        raise ArchiveError(f"{p} is not a regular file (a FIFO, a device?); give a saved model")
     try:
         with open(p, "rb") as fh:
             magic = fh.read(6)

@@ -19,7 +19,7 @@ import numpy as np
 
 from geoq._io import ArchiveError, load_archive, save_archive
 from geoq.agents.buffer import TransitionBuffer
-from geoq.agents.config import GPQConfig
+from geoq.agents.config import GPQConfig, check_seed
 from geoq.agents.state import LearningState, TrainingLog
 from geoq.gp import SparseOnlineGP
 from geoq.learners.scaling import InputScaling
@@ -77,10 +77,16 @@ def load_agent(
             {k[7:]: v for k, v in a.items() if k.startswith("buffer/")}
         )
         episodes = np.asarray(a["episodes"], dtype=np.float64)
-        state = LearningState.from_dict(meta)
+        state = LearningState.from_dict(meta).check(config.gamma)
+        log = TrainingLog.from_dict(meta, episodes)
+        rng = np.random.default_rng()
+        rng.bit_generator.state = meta["rng_state"]
+        seed, env_id = check_seed(meta["seed"]), meta["env_id"]
+        if not isinstance(env_id, str):
+            raise ValueError(f"env_id {env_id!r} is not a string")
     except ArchiveError:
         raise
-    except (KeyError, ValueError, TypeError) as exc:
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError, OverflowError) as exc:
         raise ArchiveError(f"{path}: not a valid GPQAgent archive ({exc}); save it again") from exc
     d_a = box.shape[1] if box.ndim == 2 else -1
     if (
@@ -89,16 +95,20 @@ def load_agent(
         or buffer.action_dim != d_a or episodes.ndim != 2 or episodes.shape[1] != 4
         or not (np.all(np.isfinite(box)) and np.all(np.isfinite(candidates)))
         or np.any(candidates < box[0]) or np.any(candidates > box[1])
-        or not np.isfinite(state.y_mean) or not (state.y_scale > 0)
+        or state.num_timesteps < len(buffer) or not np.all(np.isfinite(episodes[:, :3]))
     ):  # fmt: skip
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive; save it again")
-    rng = np.random.default_rng()
-    rng.bit_generator.state = meta["rng_state"]
+    try:
+        config.for_dims(obs_dim, d_a)  # the length-scales' count
+        fitted = state.fitted_lengthscale
+        if fitted is not None and len(fitted) != obs_dim + d_a:
+            raise ValueError(f"{len(fitted)} fitted length-scales for {obs_dim + d_a} inputs")
+    except ValueError as exc:
+        raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent = cls.__new__(cls)
     agent._assemble(
-        config=config, scaling=scaling, action_box=box, obs_dim=obs_dim,
-        env_id=str(meta["env_id"]), seed=meta["seed"], rng=rng, candidates=candidates,
-        buffer=buffer, state=state, log=TrainingLog.from_dict(meta, episodes),
+        config=config, scaling=scaling, action_box=box, obs_dim=obs_dim, env_id=env_id,
+        seed=seed, rng=rng, candidates=candidates, buffer=buffer, state=state, log=log,
     )  # fmt: skip
     agent.gp = gp
     if "covariances/slots" in a:  # files from before the slots: a fresh column order

@@ -7,6 +7,7 @@ Saved with every agent and reported with every result; ``as_dict`` /
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
+from numbers import Integral
 from typing import Any, Literal
 
 import numpy as np
@@ -14,6 +15,8 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
+from geoq.agents.state import as_range, check_value_bounds, value_bounds
+from geoq.gp import SparseOnlineGP
 from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
 
 __all__ = [
@@ -24,8 +27,18 @@ __all__ = [
     "Hyperparameters",
     "Prior",
     "Replay",
+    "check_learn_arguments",
+    "check_seed",
     "default_max_bv",
 ]
+
+#: Largest ``beta`` and ``action_noise``: past a million posterior standard deviations UCB
+#: is pure uncertainty sampling, past a million half-ranges the noise only hits the box's
+#: edges; beyond, products with the posterior std overflow.
+MAX_EXPLORATION = 1e6
+#: Largest ``n_candidates``: each step asks the GP about this many inputs (16,384 x 800
+#: basis vectors = 100 MB per call).
+MAX_CANDIDATES = 16_384
 
 #: ``default_max_bv``: the budget up to ``BUDGET_BASE_DIM`` inputs, doubled beyond.
 BUDGET_BASE = 400
@@ -200,22 +213,43 @@ class GPQConfig:
         if self.max_bv is not None:
             check_budget(self.max_bv)
         for name, minimum in (
-            ("n_candidates", 3), ("train_every", 1), ("max_sweeps", 0), ("window", 1),
-            ("replay_budget", 0), ("warmup_steps", 1),
+            ("train_every", 1), ("max_sweeps", 0), ("window", 1), ("replay_budget", 0),
+            ("warmup_steps", 1),
         ):  # fmt: skip
             check_int(getattr(self, name), name, minimum)
+        check_int(self.n_candidates, "n_candidates", 3, MAX_CANDIDATES)
         check_real(self.replay_eps, "replay_eps", low=0.0, high=1.0, low_open=True, high_open=True)
         check_real(self.gamma, "gamma", low=0.0, high=1.0, high_open=True)
-        check_real(self.tol, "tol", low=0.0, high=1.0)
-        for name in ("beta", "action_noise", "train_fraction"):
-            check_real(getattr(self, name), name, low=0.0)
+        try:
+            check_real(self.tol, "tol", low=0.0, high=1.0)
+        except ValueError as exc:
+            raise ValueError(
+                f"{exc}: tol is the sparse GP's novelty threshold relative to k(x, x) (above 1 "
+                "no point would ever become a basis vector; the default is 1e-6)"
+            ) from None
+        for name in ("beta", "action_noise"):
+            check_real(getattr(self, name), name, low=0.0, high=MAX_EXPLORATION)
+        check_real(self.train_fraction, "train_fraction", low=0.0)
         for name in ("noise", "amplitude", "eps", "sigma_sp", "sigma_se",
                      "resistance_lengthscale", "sweep_tol", "state_lengthscale",
                      "action_lengthscale"):  # fmt: skip
             check_real(getattr(self, name), name, low=0.0, low_open=True)
         for name in ("reward_bounds", "terminal_reward_bounds"):
             object.__setattr__(self, name, _bounds(getattr(self, name), name))
+        bounds = value_bounds(as_range(self.reward_bounds),
+                              as_range(self.terminal_reward_bounds), self.gamma)  # fmt: skip
+        check_value_bounds(bounds, "reward_bounds / terminal_reward_bounds")
         object.__setattr__(self, "lengthscale", _lengthscale(self.lengthscale))
+        self._check_model()
+
+    def _check_model(self) -> None:
+        """The kernel and GP these settings make, built once so that their own rules
+        (variance, widths, noise, tol) are checked here, with the config."""
+        try:
+            kernel = self.make_kernel(self.rule_lengthscale(1, 1), None)
+            SparseOnlineGP(kernel, noise=self.noise, max_bv=1, tol=self.tol)
+        except ValueError as exc:
+            raise ValueError(f"these settings make no valid GP: {exc}") from None
 
     def for_dims(self, obs_dim: int, action_dim: int) -> GPQConfig:
         """This config for a task of ``obs_dim`` observations and ``action_dim`` actions:
@@ -264,6 +298,29 @@ class GPQConfig:
         if unknown:
             raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
         return cls(**data)
+
+
+def check_seed(seed: Any) -> int | None:
+    """``seed`` as a Python int: None or an integer >= 0 (NumPy's included, not a bool)."""
+    if seed is None:
+        return None
+    if isinstance(seed, bool | np.bool_) or not isinstance(seed, Integral) or seed < 0:
+        raise ValueError(
+            f"seed must be None or an integer >= 0 (NumPy's SeedSequence entropy), got {seed!r}"
+        )
+    return int(seed)
+
+
+def check_learn_arguments(total_timesteps: Any, progress_bar: Any, callback: Any) -> None:
+    """The arguments of :meth:`GPQAgent.learn`, checked before any step."""
+    check_int(total_timesteps, "total_timesteps", 0)
+    if not isinstance(progress_bar, bool | np.bool_):
+        raise ValueError(f"progress_bar must be True or False, got {progress_bar!r}")
+    if callback is not None and not callable(callback):
+        raise ValueError(
+            "callback must be None or a function called with each finished episode's "
+            f"EpisodeRecord (return False to stop), got {callback!r}"
+        )
 
 
 def default_max_bv(input_dim: int) -> int:

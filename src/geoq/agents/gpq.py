@@ -55,24 +55,15 @@ import numpy as np
 
 from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray
-from geoq._validation import check_int
-from geoq.agents._env import (
-    agent_spaces,
-    as_env,
-    as_observations,
-    initial_scaling,
-    matching_env,
-    observation_box,
-    scaling_from_states,
-)
+from geoq.agents import _env
 from geoq.agents._evidence import fit_lengthscales
 from geoq.agents._persist import load_agent, save_agent
 from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
-from geoq.agents.config import REPLAYS, GPQConfig
+from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
 from geoq.agents.replay import replay_strategy
-from geoq.agents.state import LearningState, TrainingLog
+from geoq.agents.state import LearningState, TrainingLog, as_range, check_target
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import KernelName
 from geoq.kernels.geodesic import GraphKernel
@@ -89,16 +80,6 @@ RESCALE_FACTOR = 1.5
 QValues = tuple[FloatArray, FloatArray] | None
 #: Called with each finished episode's record; ``False`` stops learning.
 Callback = Callable[[EpisodeRecord], bool | None] | None
-
-
-def _range(bounds: tuple[float, float] | None) -> tuple[float, float]:
-    return (float(bounds[0]), float(bounds[1])) if bounds else (np.inf, -np.inf)
-
-
-def _progress_bar(total: int) -> Any:
-    from tqdm.auto import tqdm
-
-    return tqdm(total=int(total), unit="step")
 
 
 class GPQAgent:
@@ -141,18 +122,19 @@ class GPQAgent:
         unknown = sorted(set(config) - {f.name for f in fields(GPQConfig)})
         if unknown:
             raise TypeError(f"GPQAgent got unknown argument(s) {unknown}")
-        self.env: gymnasium.Env | None = as_env(env)
-        obs_space, act_space = agent_spaces(self.env)
+        self.env: gymnasium.Env | None = _env.as_env(env)
+        obs_space, act_space = _env.agent_spaces(self.env)
         obs_dim, action_dim = int(obs_space.shape[0]), int(act_space.shape[0])
         c = GPQConfig(kernel=kernel, max_bv=max_bv, **config).for_dims(obs_dim, action_dim)
+        seed = check_seed(seed)
         info = task_info(self.env, periods)
-        scaling, pending = initial_scaling(self.env, info, scaling)
+        scaling, pending = _env.initial_scaling(self.env, info, scaling)
         rng = np.random.default_rng(np.random.SeedSequence(seed))
         low, high = act_space.low.astype(np.float64), act_space.high.astype(np.float64)
         state = LearningState(
             y_mean=0.0, y_scale=1.0 / (1.0 - c.gamma),
-            reward_range=_range(c.reward_bounds or info.reward_range),
-            terminal_reward_range=_range(c.terminal_reward_bounds or info.terminal_reward_range),
+            reward_range=as_range(c.reward_bounds or info.reward_range),
+            terminal_reward_range=as_range(c.terminal_reward_bounds or info.terminal_reward_range),
             scaling_pending=pending, data_scaled=pending,
         )  # fmt: skip
         self._assemble(
@@ -240,7 +222,9 @@ class GPQAgent:
         ``deterministic=True`` maximises the posterior mean (greedy); otherwise
         the configured exploration is used (it draws from the agent's generator).
         """
-        S, single = as_observations(observation, self.obs_dim)
+        if not isinstance(deterministic, bool | np.bool_):
+            raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
+        S, single = _env.as_observations(observation, self.obs_dim, self._obs_scale())
         mean, std = self.q_candidates(S)
         actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
         return (actions[0] if single else actions), None
@@ -258,6 +242,9 @@ class GPQAgent:
         if q is None:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
         return self._act(*q, self.config.exploration)
+
+    def _obs_scale(self) -> FloatArray:
+        return np.asarray(self.scaling.scale[: self.obs_dim])
 
     def _q_or_none(self, states: FloatArray) -> QValues:
         """:meth:`q_candidates`, or None while the input scaling is pending."""
@@ -282,24 +269,33 @@ class GPQAgent:
         end, so the agent reflects every step taken. Each call starts a new
         episode, seeding the env's first reset from the agent's generator, so a
         saved and reloaded agent continues exactly as the original would; an
-        episode cut short by ``total_timesteps`` is not recorded.
+        episode cut short by ``total_timesteps`` is not recorded. A step the env answers
+        wrongly (:func:`~geoq.agents._env.env_step`) raises a ``ValueError`` and is not
+        taken: the agent stays as after the step before (as before the call if none).
         """
-        check_int(total_timesteps, "total_timesteps", 0)
+        check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
         if env is None:
             raise RuntimeError("this agent has no env; pass env= to GPQAgent.load to keep learning")
-        bar = _progress_bar(total_timesteps) if progress_bar else None
+        bar = _env.make_progress_bar(total_timesteps) if progress_bar else None
+        start, n_before = self.rng.bit_generator.state, self.num_timesteps
         # Later episodes continue the env's own generator, seeded at the first reset.
         seed: int | None = int(self.rng.integers(2**32))
         remaining, stop = int(total_timesteps), False
-        while remaining > 0 and not stop:
-            steps, stop = self._collect_episode(env, seed, remaining, bar, callback)
-            remaining, seed = remaining - steps, None
+        try:
+            while remaining > 0 and not stop:
+                steps, stop = self._collect_episode(env, seed, remaining, bar, callback)
+                remaining, seed = remaining - steps, None
+        except BaseException:
+            if self.num_timesteps == n_before:  # no step taken: the generator as it was
+                self.rng.bit_generator.state = start
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
         last = self.log.episodes[-1].timesteps if self.log.episodes else None
         if len(self.buffer) and not self.state.scaling_pending and last != self.num_timesteps:
             self.train()  # the steps of an unfinished episode
-        if bar is not None:
-            bar.close()
         return self
 
     def _collect_episode(
@@ -312,53 +308,57 @@ class GPQAgent:
     ) -> tuple[int, bool]:
         """One episode, or its first ``max_steps`` steps, learning online and training when
         a phase is due; returns the steps taken and whether the callback asked to stop."""
-        obs, _ = env.reset(seed=seed)
-        s, _ = as_observations(obs, self.obs_dim)
+        s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
         if isinstance(self.gp.kernel, GraphKernel):
             self.gp.kernel.start_rollout()
         q = self._q_or_none(s)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
-            a = self._explore(q)  # [1, d_a]
-            obs2, r, terminated, truncated, info = env.step(a[0].astype(env.action_space.dtype))
-            r = float(r)
-            if not np.isfinite(r):
-                raise ValueError(f"the env returned a non-finite reward {r!r}")
-            s2, _ = as_observations(obs2, self.obs_dim)
-            q = self._observe(s, a, r, s2, bool(terminated))
-            steps, ep_return = steps + 1, ep_return + r
+            step, q = self._observe(env, s, q)
+            steps, ep_return = steps + 1, ep_return + step.reward
             if bar is not None:
                 bar.update(1)
-            over = terminated or truncated
+            over = step.terminated or step.truncated
             if (self._phase_due() or over) and not self.state.scaling_pending:
                 self.train()
-                q = None if over else self.q_candidates(s2)
+                q = None if over else self.q_candidates(step.next_state)
             if over:
-                success = float(bool(info["is_success"])) if "is_success" in info else np.nan
-                rec = EpisodeRecord(self.num_timesteps, len(self.episodes) + 1, ep_return, success)
+                n = len(self.episodes) + 1
+                rec = EpisodeRecord(self.num_timesteps, n, ep_return, step.success)
                 self.log.episodes.append(rec)
                 return steps, callback is not None and callback(rec) is False
-            s = s2
+            s = step.next_state
         return steps, False
 
     def _observe(
-        self, s: FloatArray, a: FloatArray, r: float, s2: FloatArray, terminated: bool
-    ) -> QValues:
-        """Store the transition with its bootstrapped target and stream it into the GP
-        (JC12 §6's online update); returns ``Q`` at ``s2`` (the next step's choice)."""
-        self.state.observe_reward(r, terminated)
-        q = self._q_or_none(s2)
-        q_next = 0.0 if q is None or terminated else float(np.max(q[0]))
-        y = float(np.clip(r + (0.0 if terminated else self.config.gamma * q_next),
-                          *self.value_bounds()))  # fmt: skip
-        self.buffer.add(s[0], a[0], r, s2[0], terminated, target=y)
-        if not self.state.scaling_pending:
-            self.gp.update(self.inputs(s, a)[0], (y - self.state.y_mean) / self.state.y_scale)
-        elif len(self.buffer) >= self.config.warmup_steps:
+        self, env: gymnasium.Env, s: FloatArray, q: QValues
+    ) -> tuple[_env.EnvStep, QValues]:
+        """One step at ``s`` (``Q`` there: ``q``): act, check what the env returned, store the
+        transition with its bootstrapped target and stream it into the GP (JC12 §6's online
+        update); returns the step and ``Q`` at its next state (the next step's choice).
+        A refused step (:func:`env_step`, a reward whose values pass ``MAX_VALUE``)
+        raises before anything changes; the generator is put back."""
+        st, g, rng_state = self.state, self.config.gamma, self.rng.bit_generator.state
+        try:
+            step = _env.env_step(env, self._explore(q), self.obs_dim, self._obs_scale())
+            bounds = st.value_bounds_with(step.reward, step.terminated, g)
+            q = self._q_or_none(step.next_state)
+            q_next = 0.0 if q is None or step.terminated else float(np.max(q[0]))
+            y = float(np.clip(step.reward + (0.0 if step.terminated else g * q_next), *bounds))
+            if not st.scaling_pending:  # a GP update refused changes nothing
+                z = check_target((y - st.y_mean) / st.y_scale, step.reward)
+                self.gp.update(self.inputs(s, step.action)[0], z)
+        except BaseException:
+            self.rng.bit_generator.state = rng_state
+            raise
+        st.observe_reward(step.reward, step.terminated)
+        self.buffer.add(s[0], step.action[0], step.reward, step.next_state[0], step.terminated,
+                        target=y)  # fmt: skip
+        if st.scaling_pending and len(self.buffer) >= self.config.warmup_steps:
             self._finish_warmup()
-            q = self.q_candidates(s2)
-        self.state.num_timesteps += 1
-        return q
+            q = self.q_candidates(step.next_state)
+        st.num_timesteps += 1
+        return step, q
 
     def _phase_due(self) -> bool:
         """Whether a fitted-Q phase is due mid-episode (``train_every``, ``train_fraction``)."""
@@ -376,8 +376,7 @@ class GPQAgent:
 
     def _data_scaling(self) -> InputScaling:
         stored = self.buffer.transitions(last=self.config.window)
-        states = np.vstack([stored.states, stored.next_states])
-        return scaling_from_states(self.env, states, self.scaling)
+        return _env.scaling_from_states(self.env, stored, self.scaling)
 
     def _rescale_from_data(self) -> None:
         """Scale inputs by the states seen, then stream the stored transitions into a new GP."""
@@ -400,11 +399,6 @@ class GPQAgent:
                 self.gp.kernel.start_rollout()  # type: ignore[attr-defined]
             self.gp.update(X[i], (y[i] - self.state.y_mean) / self.state.y_scale)
 
-    def _spread_outgrew_scaling(self) -> bool:
-        """A data-driven scale is refreshed once the states' spread outgrows it by 1.5x."""
-        new = np.asarray(self._data_scaling().scale)
-        return bool(np.any(new > RESCALE_FACTOR * np.asarray(self.scaling.scale)))
-
     def train(self) -> int:
         """One fitted-Q phase on the stored transitions; returns the number of sweeps.
 
@@ -415,8 +409,9 @@ class GPQAgent:
             return 0
         st.last_train_timestep = st.num_timesteps
         t0 = time.perf_counter()
-        if st.data_scaled and self.env is not None and self._spread_outgrew_scaling():
-            self._rescale_from_data()
+        if st.data_scaled and self.env is not None:  # the states' spread outgrew the scale?
+            if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
+                self._rescale_from_data()
         if self.config.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
             self._fit_lengthscales()
         try:
@@ -464,7 +459,7 @@ class GPQAgent:
     def _phase_inputs(self, stored: Transitions) -> PhaseInputs:
         """What a phase on ``stored`` (the window's transitions) reads of the agent."""
         bounds = self.value_bounds()
-        low, high = observation_box(self.env)
+        low, high = _env.observation_box(self.env)
         lengthscale = np.asarray(self._lengthscale(), dtype=np.float64)
         return PhaseInputs(
             gp=self.gp, stored=stored, n_seen=len(self.buffer), bounds=bounds,
@@ -491,7 +486,7 @@ class GPQAgent:
 
     def set_env(self, env: gymnasium.Env | str) -> None:
         """Attach an env whose spaces match the agent's."""
-        self.env = matching_env(env, self.obs_dim, self.action_low, self.action_high)
+        self.env = _env.matching_env(env, self.obs_dim, self.action_low, self.action_high)
 
     def __repr__(self) -> str:
         return (

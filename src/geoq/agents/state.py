@@ -13,11 +13,66 @@ from typing import Any
 
 import numpy as np
 
+from geoq._validation import MAX_MAGNITUDE
 from geoq.agents.buffer import EpisodeRecord
 
-__all__ = ["LearningState", "TrainingLog"]
+__all__ = [
+    "MAX_VALUE",
+    "LearningState",
+    "TrainingLog",
+    "as_range",
+    "check_target",
+    "check_value_bounds",
+    "value_bounds",
+]
 
 _EMPTY_RANGE = (np.inf, -np.inf)
+
+#: Largest magnitude of a value (a target, a bound of :func:`value_bounds`): the GP's
+#: limit on targets (``MAX_MAGNITUDE``), so sums of squares of targets stay finite.
+MAX_VALUE = MAX_MAGNITUDE
+
+
+def as_range(bounds: tuple[float, float] | None) -> tuple[float, float]:
+    """A declared ``(r_min, r_max)`` as floats; None: the empty range ``(inf, -inf)``."""
+    return (float(bounds[0]), float(bounds[1])) if bounds else _EMPTY_RANGE
+
+
+def check_target(z: float, reward: float) -> float:
+    """A standardised target ``z`` the GP takes (``|z| <= MAX_MAGNITUDE``), else a
+    ``ValueError`` about the env's ``reward`` that made it."""
+    if not abs(z) <= MAX_MAGNITUDE:
+        raise ValueError(
+            f"the env's reward {reward!r} lies {abs(z):.3g} standard deviations of the values "
+            f"learned so far from them (beyond {MAX_MAGNITUDE:g}, the agent's arithmetic "
+            "overflows); rescale the rewards (gymnasium.wrappers.TransformReward)"
+        )
+    return z
+
+
+def value_bounds(
+    reward_range: tuple[float, float], terminal_range: tuple[float, float], gamma: float
+) -> tuple[float, float]:
+    """``[lo, hi]`` holding every discounted return (see :meth:`LearningState.value_bounds`)."""
+    lo, hi = reward_range
+    t_lo, t_hi = terminal_range
+    return min(lo, lo / (1.0 - gamma), t_lo), max(hi, hi / (1.0 - gamma), t_hi)
+
+
+def check_value_bounds(bounds: tuple[float, float], what: str) -> tuple[float, float]:
+    """``bounds`` if both ends that are set lie within ``MAX_VALUE``; else a ``ValueError``
+    saying that ``what`` (rewards) imply values too large, and what to do."""
+    lo, hi = bounds
+    if (lo, hi) == _EMPTY_RANGE:  # no reward declared or seen yet
+        return bounds
+    worst = max(abs(lo), abs(hi))  # inf (or NaN) where r / (1 - gamma) overflowed
+    if not worst <= MAX_VALUE:
+        raise ValueError(
+            f"{what} would make the values (discounted returns, up to r / (1 - gamma)) reach "
+            f"{worst:.3g}, beyond the {MAX_VALUE:g} the agent can learn; rescale the rewards "
+            "(gymnasium.wrappers.TransformReward)"
+        )
+    return bounds
 
 
 @dataclass
@@ -46,14 +101,40 @@ class LearningState:
     evidence_due: int = 0
     """The next evidence fit runs once this many transitions are stored."""
 
+    def _widened(self, r: float, terminated: bool) -> tuple[float, float]:
+        lo, hi = self.terminal_reward_range if terminated else self.reward_range
+        return (min(lo, r), max(hi, r))
+
     def observe_reward(self, r: float, terminated: bool) -> None:
         """Widen the reward range of terminating or of other steps by ``r``."""
-        lo, hi = self.terminal_reward_range if terminated else self.reward_range
-        widened = (min(lo, r), max(hi, r))
         if terminated:
-            self.terminal_reward_range = widened
+            self.terminal_reward_range = self._widened(r, terminated)
         else:
-            self.reward_range = widened
+            self.reward_range = self._widened(r, terminated)
+
+    def value_bounds_with(self, r: float, terminated: bool, gamma: float) -> tuple[float, float]:
+        """:meth:`value_bounds` once ``r`` is observed (nothing changes), checked: a
+        ``ValueError`` naming the env's reward if they pass ``MAX_VALUE``."""
+        rewards = self.reward_range if terminated else self._widened(r, False)
+        terminal = self._widened(r, True) if terminated else self.terminal_reward_range
+        kind = "reward of a terminating step" if terminated else "reward"
+        return check_value_bounds(value_bounds(rewards, terminal, gamma), f"the env's {kind} {r!r}")
+
+    def check(self, gamma: float) -> LearningState:
+        """``self`` if its fields are consistent (a loaded file's), else a ``ValueError``."""
+        for name in ("reward_range", "terminal_reward_range"):
+            lo, hi = getattr(self, name)
+            if not ((lo, hi) == _EMPTY_RANGE or (np.isfinite(lo) and np.isfinite(hi) and lo <= hi)):
+                raise ValueError(f"{name} {[lo, hi]} is neither empty nor a finite range")
+        check_value_bounds(self.value_bounds(gamma), "the rewards recorded")
+        if not (np.isfinite(self.y_mean) and np.isfinite(self.y_scale) and self.y_scale > 0):
+            raise ValueError(f"y_mean {self.y_mean} / y_scale {self.y_scale} are not valid")
+        if not 0 <= self.last_train_timestep <= self.num_timesteps or self.evidence_due < 0:
+            raise ValueError("the step counters are inconsistent")
+        ls = self.fitted_lengthscale
+        if ls is not None and not (len(ls) and all(np.isfinite(v) and v > 0 for v in ls)):
+            raise ValueError(f"fitted_lengthscale {ls} holds no finite length-scales > 0")
+        return self
 
     def value_bounds(self, gamma: float) -> tuple[float, float]:
         """``[lo, hi]`` holding every discounted return, so every target.
@@ -64,9 +145,7 @@ class LearningState:
         A discounted return is ``sum_{t<k} gamma^t r_t + gamma^k t_k``: between
         ``r / (1 - gamma)`` and ``t`` for constant rewards, so within the bounds.
         """
-        lo, hi = self.reward_range
-        t_lo, t_hi = self.terminal_reward_range
-        return min(lo, lo / (1.0 - gamma), t_lo), max(hi, hi / (1.0 - gamma), t_hi)
+        return value_bounds(self.reward_range, self.terminal_reward_range, gamma)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-able form (ranges as lists)."""

@@ -15,18 +15,27 @@ import gymnasium
 import numpy as np
 
 from geoq._typing import FloatArray
+from geoq._validation import MAX_MAGNITUDE, check_real
 from geoq.envs import PENDULUM_SWING_UP_ID, TWO_ROOMS_ID
 from geoq.learners.scaling import InputScaling
 
 __all__ = [
+    "HUGE_BOUND",
     "KNOWN_TASKS",
     "TaskInfo",
+    "bounded_dims",
     "box_scaling",
     "check_box_spaces",
     "data_scaling",
+    "env_action",
     "has_finite_bounds",
     "task_info",
 ]
+
+#: A space bound of this magnitude or more declares no bound (see the module docstring):
+#: no task declares a real extent that large, and a half-range of 1e6 would make the
+#: agent's length-scale rule (0.15 half-ranges) 150,000 units wide.
+HUGE_BOUND = 1e6
 
 
 @dataclass(frozen=True)
@@ -99,10 +108,14 @@ def task_info(env: gymnasium.Env, periods: Sequence[float] | None = None) -> Tas
     success = known.success_return if known is not None else None
     rewards = known.reward_range if known is not None else None
     terminal = known.terminal_reward_range if known is not None else None
-    p = tuple(float(v) for v in periods)
-    if len(p) != d or not all(np.isfinite(v) and v >= 0 for v in p):
+    try:
+        p = tuple(check_real(v, "periods") for v in np.asarray(periods, dtype=object).ravel())
+    except (ValueError, TypeError):
+        p = ()
+    if np.ndim(periods) != 1 or len(p) != d or not all(v >= 0 for v in p):
         raise ValueError(
-            f"periods must give one finite period >= 0 per observation dimension ({d}), got {p}"
+            f"periods must give one finite period >= 0 per observation dimension ({d}) in raw "
+            f"units (0: not periodic), got {periods!r}"
         )
     return TaskInfo(
         periods=p, names=names, success_return=success, reward_range=rewards,
@@ -120,11 +133,12 @@ def box_scaling(
     """
     lo = np.concatenate([obs_space.low.ravel(), action_space.low.ravel()]).astype(np.float64)
     hi = np.concatenate([obs_space.high.ravel(), action_space.high.ravel()]).astype(np.float64)
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+    if not (has_finite_bounds(obs_space) and has_finite_bounds(action_space)):
         raise ValueError(
-            "the observation or action space has infinite bounds; geoq scales inputs by the "
-            "space bounds, so wrap the env in gymnasium.wrappers.ClipObservation or pass "
-            "scaling= with a finite scale per dimension"
+            f"the observation or action space has infinite bounds (or bounds of {HUGE_BOUND:g} "
+            "or more, which declare none); geoq scales inputs by the space bounds, so wrap "
+            "the env in gymnasium.wrappers.ClipObservation or pass scaling= with a finite "
+            "scale per dimension"
         )
     half = 0.5 * (hi - lo)
     half = np.where(half > 0, half, 1.0)
@@ -154,13 +168,38 @@ def check_box_spaces(
             "Discrete action spaces are not supported."
         )
     if finite_actions and not has_finite_bounds(act):
-        raise ValueError(f"{name}: {who} needs finite action bounds; got {act!r}")
+        raise ValueError(
+            f"{name}: {who} needs finite action bounds below {HUGE_BOUND:g} in magnitude (it "
+            f"acts in the box); got {act!r}: wrap the env in gymnasium.wrappers.RescaleAction"
+        )
     return obs, act
 
 
+def bounded_dims(space: gymnasium.spaces.Box) -> np.ndarray:
+    """``[d]`` bool: whether each dimension of ``space`` has two bounds that count, finite
+    and below :data:`HUGE_BOUND` in magnitude (larger ones declare no bound)."""
+    lo = np.asarray(space.low, dtype=np.float64).ravel()
+    hi = np.asarray(space.high, dtype=np.float64).ravel()
+    with np.errstate(invalid="ignore"):
+        return (np.abs(lo) < HUGE_BOUND) & (np.abs(hi) < HUGE_BOUND)
+
+
 def has_finite_bounds(space: gymnasium.spaces.Box) -> bool:
-    """Whether every bound of ``space`` is finite (then :func:`box_scaling` applies)."""
-    return bool(np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high)))
+    """Whether every bound of ``space`` counts (:func:`bounded_dims`; then
+    :func:`box_scaling` applies)."""
+    return bool(np.all(bounded_dims(space)))
+
+
+def env_action(action: FloatArray, space: gymnasium.spaces.Box) -> np.ndarray:
+    """The action ``[d_a]`` (float64, inside the box) as the env receives it: cast to the
+    space's dtype, integer (and bool) boxes rounded to the nearest value first (a cast
+    alone would truncate towards zero) and clipped to the box."""
+    a = np.asarray(action, dtype=np.float64)
+    if space.dtype.kind in "iub":
+        low = np.asarray(space.low, dtype=np.float64)
+        high = np.asarray(space.high, dtype=np.float64)
+        return np.clip(np.rint(a), low, high).astype(space.dtype)
+    return a.astype(space.dtype)
 
 
 def data_scaling(
@@ -194,12 +233,15 @@ def data_scaling(
         raise ValueError("observed states contain NaN or inf")
     lo = obs_space.low.ravel().astype(np.float64)
     hi = obs_space.high.ravel().astype(np.float64)
-    finite = np.isfinite(lo) & np.isfinite(hi)
+    finite = bounded_dims(obs_space)
     q_lo, q_hi = np.quantile(S, [quantile, 1.0 - quantile], axis=0)
     spread = 0.5 * (q_hi - q_lo)
     periods = np.asarray(info.periods, dtype=np.float64)
     data = np.where(periods > 0, 0.5 * periods, np.where(spread > 0, spread, 1.0))
-    half_box = np.where(finite, 0.5 * (hi - lo), 1.0)
+    # Every state seen maps inside the GP's input range (a tiny spread beside a far state).
+    data = np.maximum(data, np.max(np.abs(S), axis=0) / MAX_MAGNITUDE)
+    with np.errstate(invalid="ignore", over="ignore"):
+        half_box = np.where(finite, 0.5 * (hi - lo), 1.0)
     obs_scale = np.where(finite & (half_box > 0), half_box, np.where(finite, 1.0, data))
     clipped = gymnasium.spaces.Box(
         -np.ones(d_s), np.ones(d_s), dtype=np.float64

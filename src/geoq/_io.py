@@ -126,11 +126,19 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def check_run_dir(out: str | os.PathLike[str], names: Collection[str], overwrite: bool) -> None:
-    """A ``FileExistsError`` unless ``out`` can receive a run of the files ``names``: it is
-    a directory or can be made one, and it holds none of them unless ``overwrite``."""
+    """An ``OSError`` unless ``out`` can receive a run of the files ``names``: it is a
+    directory or can be made one (its nearest existing ancestor is a writable directory),
+    and it holds none of them unless ``overwrite`` (``FileExistsError``)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"{out} exists and is not a directory; give a directory")
+    ancestor = out
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise FileExistsError(f"{ancestor} is not a directory, so {out} cannot be made")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise PermissionError(f"{ancestor} is not writable, so {out} cannot be written")
     earlier = sorted(n for n in names if (out / n).exists() or (out / n).is_symlink())
     if earlier and not overwrite:
         raise FileExistsError(

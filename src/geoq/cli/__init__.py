@@ -25,10 +25,13 @@ Commands
 ``geoq info``
     Print the registered Gymnasium environments and the kernels.
 
-Exit codes: 0 success; 2 usage error (bad option value or combination, from
-typer/click); 1 failure while running, reported as one line on stderr;
-130 interrupted (finished sweep cells are kept: rerun the same command to
-resume).
+Exit codes: 0 success; 2 usage error (a bad option value or combination, an
+``--env`` that is not registered or that the agent cannot learn, a ``--config``
+whose settings the agent refuses, an ``--out`` that cannot be written or holds an
+earlier run without ``--overwrite``, an ``AGENT`` file that is not a saved agent),
+always before any work; 1 failure while running, reported as one line on stderr
+(warnings too are one line each); 130 interrupted, 143 terminated (finished sweep
+cells are kept: rerun the same command to resume).
 
 Heavy imports (numpy, the experiments) happen inside the commands, so that
 ``geoq --help`` stays fast.
@@ -54,5 +57,14 @@ app.command()(info)
 
 
 def main() -> None:
-    """Entry point of the ``geoq`` console script."""
-    app()
+    """Entry point of the ``geoq`` console script: a failure the commands did not report
+    (a bug) is still one line on stderr and exit 1, never a traceback."""
+    import sys
+
+    from geoq.cli._common import one_line
+
+    try:
+        app()
+    except Exception as exc:
+        print(f"geoq: internal error: {one_line(exc)}", file=sys.stderr)
+        sys.exit(1)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import enum
 import signal
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -18,6 +19,7 @@ import typer
 
 __all__ = [
     "CONFIG_OPTION",
+    "OVERWRITE_OPTION",
     "Backend",
     "KernelChoice",
     "Scale",
@@ -25,8 +27,11 @@ __all__ = [
     "agent_config",
     "app",
     "capped_jobs",
+    "check_agents",
     "check_choices",
+    "check_env",
     "check_out",
+    "check_scheduler",
     "check_video_path",
     "one_line",
     "reported",
@@ -110,15 +115,68 @@ def one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
-def check_out(out: Path) -> None:
-    """Usage errors for an output directory that is empty (the current one) or a file."""
+def check_out(out: Path, run_files: Sequence[str] = (), overwrite: bool = False) -> None:
+    """Usage errors for an output directory that is empty (the current one), a file, one
+    that cannot be made or written, or one holding an earlier run of ``run_files`` (unless
+    ``overwrite``): :func:`geoq._io.check_run_dir`, the library's own check."""
     if str(out).strip() in ("", "."):
         raise typer.BadParameter(
             "give an output directory (an empty --out would write into the current one)",
             param_hint="'--out'",
         )
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    from geoq._io import check_run_dir
+
+    try:
+        check_run_dir(out, run_files, overwrite)
+    except OSError as exc:
+        raise typer.BadParameter(str(exc).replace("overwrite=True (--overwrite)", "--overwrite"),
+                                 param_hint="'--out'") from exc  # fmt: skip
+
+
+def check_scheduler(scheduler: str | None, backend: Backend) -> None:
+    """Usage errors for a Dask scheduler address without ``--backend dask``, or empty."""
+    if scheduler is not None and backend is not Backend.dask:
+        raise typer.BadParameter(
+            "a scheduler address needs --backend dask", param_hint="'--scheduler'"
+        )
+    if scheduler is not None and not scheduler.strip():
+        raise typer.BadParameter("the scheduler address is empty", param_hint="'--scheduler'")
+
+
+def check_env(env_id: str, option: str = "--env") -> None:
+    """A usage error unless ``env_id`` is a registered env the agent can learn (1-D Box
+    spaces, a bounded action box)."""
+    import gymnasium
+
+    from geoq.agents._env import agent_spaces, as_env
+
+    if env_id not in gymnasium.registry:
+        raise typer.BadParameter(
+            f"{env_id!r} is not a registered Gymnasium id (`geoq info` lists geoq's envs)",
+            param_hint=f"'{option}'",
+        )
+    try:
+        env = as_env(env_id)
+        try:
+            agent_spaces(env)
+        finally:
+            env.close()
+    except Exception as exc:  # gymnasium.make can raise anything (missing dependencies)
+        raise typer.BadParameter(one_line(exc), param_hint=f"'{option}'") from exc
+
+
+def check_agents(env_id: str, kernels: Sequence[str], configs: Sequence[dict[str, Any]]) -> None:
+    """Every agent a command will make, made once now: the API's own validation of the
+    settings (``GPQAgent``, :class:`~geoq.agents.GPQConfig`) is the CLI's (usage error)."""
+    check_env(env_id)
+    from geoq.agents import GPQAgent
+
+    for kernel in kernels:
+        for overrides in configs:
+            try:
+                GPQAgent(env_id, kernel=kernel, seed=0, **overrides)  # type: ignore[arg-type]
+            except (ValueError, TypeError, RecursionError) as exc:
+                raise typer.BadParameter(one_line(exc), param_hint="'--config'") from exc
 
 
 def check_video_path(path: Path) -> None:
@@ -171,6 +229,12 @@ def reported(command: str, on_interrupt: str) -> Iterator[None]:
             previous = signal.signal(signal.SIGTERM, _raise_terminated)
         except ValueError:  # not the main thread: leave SIGTERM alone
             previous = None
+
+    def show(message: Any, category: Any, *args: Any, **kwargs: Any) -> None:
+        text = " ".join(str(message).split())
+        typer.echo(f"geoq {command}: warning: {category.__name__}: {text}", err=True)
+
+    shown, warnings.showwarning = warnings.showwarning, show  # one line, as the CLI's own
     try:
         yield
     except KeyboardInterrupt as exc:
@@ -180,6 +244,7 @@ def reported(command: str, on_interrupt: str) -> Iterator[None]:
         typer.echo(f"geoq {command}: error: {one_line(exc)}", err=True)
         raise typer.Exit(1) from exc
     finally:
+        warnings.showwarning = shown
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
@@ -198,8 +263,13 @@ def agent_config(config: Path | None) -> dict[str, Any]:
             raise ValueError("the config must be a JSON object of GPQConfig fields")
         if "kernel" in data:
             raise ValueError("set the kernel with --kernel, not in the config")
-        GPQConfig.from_dict(data)  # validates names, types and ranges
-    except (ValueError, TypeError) as exc:
+        GPQConfig.from_dict(data)  # names, types and ranges; check_agents does the rest
+    except RecursionError:
+        raise typer.BadParameter(
+            "the JSON is nested too deeply; give a flat object of GPQConfig fields",
+            param_hint="'--config'",
+        ) from None
+    except (ValueError, TypeError, OSError) as exc:  # JSON and UTF-8 errors are ValueErrors
         raise typer.BadParameter(one_line(exc), param_hint="'--config'") from exc
     return data
 
@@ -213,6 +283,11 @@ CONFIG_OPTION = typer.Option(
         'JSON object of agent settings (GPQConfig fields), e.g. {"exploration": "thompson", '
         '"max_bv": 300}. Recorded in config.json.'
     ),
+)
+
+
+OVERWRITE_OPTION = typer.Option(
+    "--overwrite", help="Replace an earlier run in --out (refused without it)."
 )
 
 

@@ -9,12 +9,16 @@ import typer
 
 from geoq.cli._common import (
     CONFIG_OPTION,
+    OVERWRITE_OPTION,
     Backend,
     KernelChoice,
     agent_config,
     capped_jobs,
+    check_agents,
     check_choices,
+    check_env,
     check_out,
+    check_scheduler,
     check_video_path,
     one_line,
     reported,
@@ -63,16 +67,21 @@ def train(
     eval_episodes: Annotated[
         int, typer.Option("--eval-episodes", min=1, help="Episodes per greedy evaluation.")
     ] = 10,
+    overwrite: Annotated[bool, OVERWRITE_OPTION] = False,
 ) -> None:
     """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
-    check_out(out)
+    from geoq.experiments.control import TRAIN_FILES
+
+    check_out(out, TRAIN_FILES, overwrite)
     overrides = agent_config(config)
+    check_agents(env, [kernel.value], [overrides])
     with reported("train", "nothing was written"):
         from geoq.experiments.control import train as run_train
 
         agent = run_train(
             env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
-            eval_every=eval_every, eval_episodes=eval_episodes, **overrides,
+            eval_every=eval_every, eval_episodes=eval_episodes, overwrite=overwrite,
+            **overrides,
         )  # fmt: skip
     last = agent.episodes[-1] if agent.episodes else None
     tail = f"; last episode return {last.ret:.1f}" if last else ""
@@ -109,10 +118,23 @@ def evaluate(
     """Evaluate a saved agent: mean return with its 95% interval, and the success rate."""
     if video is not None:
         check_video_path(video)
-    with reported("evaluate", "nothing was written"):
-        from geoq.agents import GPQAgent
+    if env is not None:
+        check_env(env)
+    from geoq._io import ArchiveError
+    from geoq.agents import GPQAgent
 
+    try:
         agent = GPQAgent.load(agent_path, env=env)
+    except ArchiveError as exc:
+        raise typer.BadParameter(one_line(exc), param_hint="'AGENT'") from exc
+    except ValueError as exc:  # the env's spaces differ from the agent's
+        raise typer.BadParameter(one_line(exc), param_hint="'--env'") from exc
+    if agent.env is None:
+        raise typer.BadParameter(
+            f"the agent's env {agent.env_id or '(unnamed)'!r} is not registered here; pass "
+            "--env ID of a registered env with the agent's spaces",
+            param_hint="'--env'",
+        )
     if video is not None:
         from geoq.experiments.video import check_renderable
 
@@ -188,31 +210,54 @@ def bench_control(
     ] = None,
     config: Annotated[Path | None, CONFIG_OPTION] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
+    overwrite: Annotated[
+        bool,
+        typer.Option(
+            "--overwrite",
+            help="Replace the report of a benchmark of other settings in --out (finished "
+            "cells are kept; refused without it).",
+        ),
+    ] = False,
 ) -> None:
     """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
     from geoq.agents.acquisition import EXPLORATION_MODES
     from geoq.agents.config import REPLAYS
-
-    if scheduler is not None and backend is not Backend.dask:
-        raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
+    from geoq.experiments.control import check_baselines, check_benchmark_dir
     from geoq.experiments.sac_baseline import BASELINES
 
+    check_scheduler(scheduler, backend)
     check_choices(explorations, EXPLORATION_MODES, "--exploration")
     check_choices(replays, REPLAYS, "--replay")
     check_choices(baselines, BASELINES, "--baseline")
+    try:
+        check_baselines(baselines or [])
+    except ValueError as exc:
+        raise typer.BadParameter(one_line(exc), param_hint="'--baseline'") from exc
     check_out(out)
-    jobs = capped_jobs(jobs, scheduler)
     base = agent_config(config)
     configs = [dict(base, exploration=m) for m in explorations] if explorations else [base]
     if replays:
         configs = [dict(c, replay=r) for c in configs for r in replays]
+    names = [k.value for k in (kernels or [KernelChoice.euclidean])]
+    check_agents(env, names, configs)
+    settings = {
+        "env": env, "kernels": names, "seeds": seeds, "timesteps": timesteps,
+        "eval_every": eval_every, "eval_episodes": eval_episodes, "configs": configs,
+        "baselines": baselines or [],
+    }  # fmt: skip
+    try:
+        check_benchmark_dir(out, settings, overwrite)
+    except OSError as exc:
+        text = str(exc).replace("overwrite=True (--overwrite)", "--overwrite")
+        raise typer.BadParameter(text, param_hint="'--out'") from exc
+    jobs = capped_jobs(jobs, scheduler)
     with reported("bench-control", "finished cells are kept; rerun to resume"):
         from geoq.experiments.control import run_control_benchmark
 
         run_control_benchmark(
-            out, env_id=env, kernels=[k.value for k in (kernels or [KernelChoice.euclidean])],
-            seeds=seeds, timesteps=timesteps, eval_every=eval_every,
-            eval_episodes=eval_episodes, configs=configs, baselines=baselines or [],
-            jobs=jobs, backend=backend.value, scheduler=scheduler, progress=progress,
+            out, env_id=env, kernels=names, seeds=seeds, timesteps=timesteps,
+            eval_every=eval_every, eval_episodes=eval_episodes, configs=configs,
+            baselines=baselines or [], jobs=jobs, backend=backend.value, scheduler=scheduler,
+            progress=progress, overwrite=overwrite,
         )  # fmt: skip
     typer.echo(f"geoq bench-control: done; {out / 'CONTROL.md'}")

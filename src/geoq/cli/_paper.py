@@ -13,6 +13,7 @@ from geoq.cli._common import (
     SuiteScale,
     capped_jobs,
     check_out,
+    check_scheduler,
     one_line,
     reported,
 )
@@ -123,12 +124,7 @@ def reproduce(
     ] = None,
 ) -> None:
     """Reproduce every figure of the paper (Fig. 1-3), their data and a REPORT.md into --out."""
-    if scheduler is not None and backend is not Backend.dask:
-        raise typer.BadParameter(
-            "a scheduler address needs --backend dask", param_hint="'--scheduler'"
-        )
-    if scheduler is not None and not scheduler.strip():
-        raise typer.BadParameter("the scheduler address is empty", param_hint="'--scheduler'")
+    check_scheduler(scheduler, backend)
     check_out(out)
     jobs = capped_jobs(jobs, scheduler)
 
@@ -206,10 +202,8 @@ def suite(
     progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
 ) -> None:
     """Policy evaluation on the task suite: the Fig. 3 protocol per task, SUITE.md (resumable)."""
-    if scheduler is not None and backend is not Backend.dask:
-        raise typer.BadParameter("a scheduler needs --backend dask", param_hint="'--scheduler'")
-    if out.exists() and not out.is_dir():
-        raise typer.BadParameter(f"{out} exists and is not a directory", param_hint="'--out'")
+    check_scheduler(scheduler, backend)
+    check_out(out)
     from geoq.tasks.suite import suite_task
 
     for task in tasks or []:
@@ -217,6 +211,7 @@ def suite(
             suite_task(task)
         except ValueError as exc:
             raise typer.BadParameter(one_line(exc), param_hint="'--tasks'") from exc
+    jobs = capped_jobs(jobs, scheduler)
     with reported("suite", "finished cells are kept; rerun to resume"):
         from geoq.experiments.suite import run_suite
 

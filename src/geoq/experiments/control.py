@@ -15,6 +15,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -24,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from geoq import __version__
-from geoq._io import atomic_write_json, atomic_write_text
+from geoq._io import atomic_write_json, atomic_write_text, check_run_dir, staged_run
 from geoq.agents import GPQAgent
 from geoq.envs import PENDULUM_SWING_UP_ID
 from geoq.experiments.control_eval import (
@@ -45,9 +47,13 @@ from geoq.policies import default_policy
 from geoq.tasks import KNOWN_TASKS
 
 __all__ = [
+    "BENCHMARK_FILES",
+    "TRAIN_FILES",
     "ControlCell",
     "Evaluation",
     "HandMadeController",
+    "check_baselines",
+    "check_benchmark_dir",
     "control_cell",
     "control_report",
     "evaluate_agent",
@@ -59,6 +65,12 @@ __all__ = [
 
 #: Columns of ``learning_curve.csv``.
 CURVE_COLUMNS = ("timesteps", "episode", "return", "success")
+#: The files of a ``geoq train`` run (written together; an earlier run is replaced whole).
+TRAIN_FILES = (
+    "learning_curve.csv", "evaluations.csv", "learning_curve.png", "agent.npz", "config.json",
+)  # fmt: skip
+#: The report of a ``geoq bench-control`` run (its finished cells live in ``cells/``).
+BENCHMARK_FILES = ("benchmark.json", "control.csv", "learning_curves.png", "CONTROL.md")
 
 
 class HandMadeController:
@@ -89,6 +101,7 @@ def train(
     progress: bool = False,
     eval_every: int = 250,
     eval_episodes: int = 10,
+    overwrite: bool = False,
     **config: Any,
 ) -> GPQAgent:
     """Learn with a fresh :class:`GPQAgent` and write its outputs into ``out``.
@@ -100,35 +113,80 @@ def train(
 
     Writes ``learning_curve.csv`` (``timesteps, episode, return, success`` per
     training episode), ``evaluations.csv`` (:data:`EVAL_COLUMNS` per evaluation),
-    ``learning_curve.png`` (both curves), ``agent.npz`` and ``config.json``, each
-    atomically. Returns the agent.
+    ``learning_curve.png`` (both curves), ``agent.npz`` and ``config.json``
+    (:data:`TRAIN_FILES`), together (:func:`geoq._io.staged_run`): a failure writes
+    nothing. ``out`` must not hold an earlier run unless ``overwrite`` (then that run is
+    replaced whole); this, and that ``out`` can be written, is checked before learning.
+    Returns the agent.
     """
 
     out = Path(out)
+    check_run_dir(out, TRAIN_FILES, overwrite)
     agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
     evals = EvalCallback(agent, eval_every, eval_episodes, 10_000 + seed) if eval_every else None
     agent.learn(timesteps, progress_bar=progress, callback=evals)
     if evals is not None:
         evals.finish()
-    out.mkdir(parents=True, exist_ok=True)
     rows = _curve_rows(agent)
-    write_csv(out / "learning_curve.csv", rows, CURVE_COLUMNS)
     ts = np.array([r["timesteps"] for r in rows], dtype=np.float64)
     rets = np.array([r["return"] for r in rows], dtype=np.float64)
-    if evals is not None:
-        write_csv(out / "evaluations.csv", evals.rows, EVAL_COLUMNS)
-        figure = plot_training_with_evaluations(ts, rets, evals.rows, env_id)
-    else:
-        figure = plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id)
-    save_figure(figure, out / "learning_curve.png")
-    agent.save(out / "agent.npz")
-    atomic_write_json(
-        out / "config.json",
-        {"env": env_id, "seed": seed, "timesteps": timesteps, "geoq_version": __version__,
-         "eval_every": eval_every, "eval_episodes": eval_episodes,
-         "agent": agent.config.as_dict(), "scaling": agent.scaling.as_dict()},
-    )  # fmt: skip
+    with staged_run(out, TRAIN_FILES, overwrite=overwrite) as staging:
+        write_csv(staging / "learning_curve.csv", rows, CURVE_COLUMNS)
+        if evals is not None:
+            write_csv(staging / "evaluations.csv", evals.rows, EVAL_COLUMNS)
+            figure = plot_training_with_evaluations(ts, rets, evals.rows, env_id)
+        else:
+            figure = plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id)
+        save_figure(figure, staging / "learning_curve.png")
+        agent.save(staging / "agent.npz")
+        atomic_write_json(
+            staging / "config.json",
+            {"env": env_id, "seed": seed, "timesteps": timesteps, "geoq_version": __version__,
+             "eval_every": eval_every, "eval_episodes": eval_episodes,
+             "agent": agent.config.as_dict(), "scaling": agent.scaling.as_dict()},
+        )  # fmt: skip
     return agent
+
+
+def check_baselines(baselines: Sequence[str]) -> None:
+    """A ``ValueError`` for a baseline that is unknown or cannot run here (its package is
+    missing): checked before a benchmark starts, not after its GP cells."""
+    for name in baselines:
+        if name not in BASELINES:
+            raise ValueError(f"baseline {name!r} is not one of {BASELINES}")
+        if importlib.util.find_spec("stable_baselines3") is None:
+            raise ValueError(
+                f"the {name} baseline needs stable-baselines3: pip install 'geoq[baselines]' "
+                "(it pulls torch, several GB)"
+            )
+
+
+def _benchmark_settings(**settings: Any) -> dict[str, Any]:
+    """The settings a benchmark report is made of, as their JSON round trip."""
+    return dict(json.loads(json.dumps(settings)))
+
+
+def check_benchmark_dir(out: str | Path, settings: Mapping[str, Any], overwrite: bool) -> None:
+    """An ``OSError`` unless ``out`` can take a benchmark of ``settings``: writable, and its
+    report (``benchmark.json``) of the same settings (a rerun resumes), or none, or
+    ``overwrite`` (the report is replaced; finished cells of any settings are kept)."""
+    out = Path(out)
+    check_run_dir(out, (), overwrite)
+    manifest = out / "benchmark.json"
+    if overwrite or not (manifest.exists() or (out / "CONTROL.md").exists()):
+        return
+    try:
+        stored = json.loads(manifest.read_text())["settings"]
+    except (OSError, ValueError, KeyError, TypeError):
+        stored = None
+    if stored != _benchmark_settings(**settings):
+        differ = sorted(k for k in settings if not isinstance(stored, dict)
+                        or stored.get(k) != _benchmark_settings(**settings)[k])  # fmt: skip
+        raise FileExistsError(
+            f"{out} holds the report of a benchmark of other settings ({', '.join(differ)}); "
+            "give another directory, or pass overwrite=True (--overwrite) to replace that "
+            "report (finished cells are kept)"
+        )
 
 
 # --------------------------------------------------------------------------- benchmark
@@ -283,15 +341,26 @@ def run_control_benchmark(
     backend: str = "loky",
     scheduler: str | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> list[dict[str, Any]]:
     """Every (kernel, config, seed) cell through the resumable sweep runner; writes
-    ``control.csv``, ``learning_curves.png`` and ``CONTROL.md`` into ``out``.
+    ``benchmark.json`` (the settings), ``control.csv``, ``learning_curves.png`` and
+    ``CONTROL.md`` into ``out``, together.
 
     ``baselines`` (e.g. ``["sac"]``) adds cells of those baselines with default
-    settings, same seeds, budgets and evaluation.
+    settings, same seeds, budgets and evaluation. Before any cell runs: the baselines
+    can run (:func:`check_baselines`) and ``out`` holds no report of other settings
+    unless ``overwrite`` (:func:`check_benchmark_dir`).
     """
 
     out = Path(out)
+    settings = _benchmark_settings(
+        env=env_id, kernels=list(kernels), seeds=seeds, timesteps=timesteps,
+        eval_every=eval_every, eval_episodes=eval_episodes, configs=[dict(c) for c in configs],
+        baselines=list(baselines),
+    )  # fmt: skip
+    check_baselines(baselines)
+    check_benchmark_dir(out, settings, overwrite)
     cells = [
         ControlCell(env_id, k, s, timesteps, eval_every, eval_episodes, dict(c))
         for k in kernels for c in configs for s in range(seeds)
@@ -309,7 +378,6 @@ def run_control_benchmark(
         for r in rows
         for t, ret, s in zip(r["checkpoints"], r["eval_return"], r["eval_success"], strict=True)
     ]  # fmt: skip
-    write_csv(out / "control.csv", flat)
     curves: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for label in dict.fromkeys(r["label"] for r in rows):
         sel = [r for r in rows if r["label"] == label]
@@ -317,15 +385,19 @@ def run_control_benchmark(
             np.array([r["checkpoints"] for r in sel], dtype=np.float64),
             np.array([r["eval_success"] for r in sel], dtype=np.float64),
         )
-    save_figure(
-        plot_learning_curve(curves, env_id, ylabel="evaluation success rate"),
-        out / "learning_curves.png",
-    )
     reference = None
     if env_id == PENDULUM_SWING_UP_ID:
         reference = evaluate_agent(HandMadeController(), env_id, eval_episodes, seed=10_000)
-    atomic_write_text(
-        out / "CONTROL.md",
-        control_report(rows, f"Control benchmark on {env_id}", reference=reference, env_id=env_id),
-    )
+    with staged_run(out, BENCHMARK_FILES, overwrite=True) as staging:  # checked above
+        atomic_write_json(staging / "benchmark.json", {"settings": settings})
+        write_csv(staging / "control.csv", flat)
+        save_figure(
+            plot_learning_curve(curves, env_id, ylabel="evaluation success rate"),
+            staging / "learning_curves.png",
+        )
+        atomic_write_text(
+            staging / "CONTROL.md",
+            control_report(rows, f"Control benchmark on {env_id}", reference=reference,
+                           env_id=env_id),
+        )  # fmt: skip
     return rows

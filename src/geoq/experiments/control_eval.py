@@ -187,7 +187,8 @@ EVAL_COLUMNS = ("timesteps", "mean_return", "return_low", "return_high", "succes
 class LearningAgent(Actor, Protocol):
     """An :class:`Actor` that counts its steps (:class:`~geoq.agents.GPQAgent`)."""
 
-    num_timesteps: int
+    @property
+    def num_timesteps(self) -> int: ...
 
 
 class EvalCallback:

@@ -18,6 +18,7 @@ from geoq._typing import ArrayLike
 from geoq.experiments.fig1 import GraphSnapshot
 from geoq.experiments.fig2 import ValueMaps
 from geoq.experiments.stats import log_interval, mean_interval
+from geoq.experiments.visits import VisitMap
 
 __all__ = [
     "KERNEL_STYLE",
@@ -26,6 +27,7 @@ __all__ = [
     "plot_learning_curve",
     "plot_training_with_evaluations",
     "plot_value_maps",
+    "plot_visits",
 ]
 
 #: Colour and label per kernel name, shared by every figure.
@@ -242,4 +244,28 @@ def plot_training_with_evaluations(
         ax_s.set_ylabel("success rate of the greedy episodes")
         ax_s.set_title("(b) greedy evaluation: success", fontsize=10)
         ax_s.grid(alpha=0.3)
+    return fig
+
+
+def plot_visits(visits: VisitMap, title: str = "") -> Figure:
+    """Training visits (log scale) and the greedy route of a 2-D task
+    (:mod:`geoq.experiments.visits`)."""
+    fig = Figure(figsize=(5.5, 4.6), layout="constrained")
+    ax = fig.add_subplot()
+    (x0, x1), (y0, y1) = visits.extent
+    image = ax.imshow(
+        np.log10(1.0 + visits.counts.T), origin="lower", extent=(x0, x1, y0, y1),
+        aspect="auto", cmap="Greys", interpolation="nearest",
+    )  # fmt: skip
+    fig.colorbar(image, ax=ax, label="log10(1 + visits) in training")
+    route = visits.route
+    ax.plot(route[:, 0], route[:, 1], color="tab:red", lw=1.5, label="greedy route")
+    ax.plot(*route[0], "o", color="tab:green", label="start")
+    ax.plot(*route[-1], "s", color="tab:red", label="end")
+    outcome = (
+        "" if np.isnan(visits.success) else (" (success)" if visits.success else " (no success)")
+    )
+    ax.set(xlim=(x0, x1), ylim=(y0, y1), xlabel=visits.names[0], ylabel=visits.names[1])
+    ax.set_title((title + ": " if title else "") + "where the agent went" + outcome)
+    ax.legend(loc="best", fontsize="small")
     return fig

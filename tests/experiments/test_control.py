@@ -36,8 +36,9 @@ def test_geoq_train_writes_every_output_and_evaluate_reads_it(tmp_path: Path) ->
             "--out", str(out), "--config", str(cfg), "--no-progress"]  # fmt: skip
     result = RUNNER.invoke(app, args)
     assert result.exit_code == 0, result.output
-    for name in ("learning_curve.csv", "learning_curve.png", "agent.npz", "config.json"):
-        assert (out / name).is_file(), name
+    for name in ("learning_curve.csv", "learning_curve.png", "visits.png", "agent.npz",
+                 "config.json"):  # fmt: skip
+        assert (out / name).is_file(), name  # visits.png: the swing-up's observation is 2-D
     rows = list(csv.DictReader((out / "learning_curve.csv").open()))
     assert [list(r) for r in rows] == [["timesteps", "episode", "return", "success"]]
     assert rows[0]["timesteps"] == "250" and rows[0]["success"] in ("0", "1")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium
 import numpy as np
 from matplotlib.figure import Figure
@@ -70,3 +72,13 @@ def test_plot_shows_the_visits_and_the_route() -> None:
     assert len(ax.images) == 1 and ax.images[0].get_array().shape == vm.counts.T.shape
     np.testing.assert_array_equal(ax.lines[0].get_xydata(), vm.route)
     assert "where the agent went" in ax.get_title()
+
+
+def test_train_writes_visits_only_for_two_dimensional_tasks(tmp_path: Path) -> None:
+    from geoq.experiments.control import train
+
+    train("geoq/TwoRooms-v0", tmp_path / "rooms", timesteps=60, eval_every=0, max_bv=20)
+    assert (tmp_path / "rooms" / "visits.png").stat().st_size > 5_000
+    train("Pendulum-v1", tmp_path / "pendulum", timesteps=30, eval_every=0, max_bv=20)
+    assert not (tmp_path / "pendulum" / "visits.png").exists()
+    assert (tmp_path / "pendulum" / "agent.npz").is_file()

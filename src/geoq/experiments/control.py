@@ -22,6 +22,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import gymnasium
 import numpy as np
 from scipy import stats
 
@@ -38,11 +39,16 @@ from geoq.experiments.control_eval import (
     evaluation_success,
     learn_with_checkpoints,
 )
-from geoq.experiments.plotting import plot_learning_curve, plot_training_with_evaluations
+from geoq.experiments.plotting import (
+    plot_learning_curve,
+    plot_training_with_evaluations,
+    plot_visits,
+)
 from geoq.experiments.reproduce import save_figure, write_csv
 from geoq.experiments.sac_baseline import BASELINES, sac_cell
 from geoq.experiments.stats import mean_interval
 from geoq.experiments.sweep import run_sweep
+from geoq.experiments.visits import visit_map
 from geoq.policies import default_policy
 from geoq.tasks import KNOWN_TASKS
 
@@ -67,7 +73,8 @@ __all__ = [
 CURVE_COLUMNS = ("timesteps", "episode", "return", "success")
 #: The files of a ``geoq train`` run (written together; an earlier run is replaced whole).
 TRAIN_FILES = (
-    "learning_curve.csv", "evaluations.csv", "learning_curve.png", "agent.npz", "config.json",
+    "learning_curve.csv", "evaluations.csv", "learning_curve.png", "visits.png", "agent.npz",
+    "config.json",
 )  # fmt: skip
 #: The report of a ``geoq bench-control`` run (its finished cells live in ``cells/``).
 BENCHMARK_FILES = ("benchmark.json", "control.csv", "learning_curves.png", "CONTROL.md")
@@ -113,7 +120,9 @@ def train(
 
     Writes ``learning_curve.csv`` (``timesteps, episode, return, success`` per
     training episode), ``evaluations.csv`` (:data:`EVAL_COLUMNS` per evaluation),
-    ``learning_curve.png`` (both curves), ``agent.npz`` and ``config.json``
+    ``learning_curve.png`` (both curves), for a task with a 2-D observation ``visits.png``
+    (the training states' visitation map and one greedy route from the reset of seed
+    ``10_000 + seed``: :mod:`geoq.experiments.visits`), ``agent.npz`` and ``config.json``
     (:data:`TRAIN_FILES`), together (:func:`geoq._io.staged_run`): a failure writes
     nothing. ``out`` must not hold an earlier run unless ``overwrite`` (then that run is
     replaced whole); this, and that ``out`` can be written, is checked before learning.
@@ -138,6 +147,9 @@ def train(
         else:
             figure = plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id)
         save_figure(figure, staging / "learning_curve.png")
+        visits = visit_map(agent, gymnasium.make(env_id), 10_000 + seed)
+        if visits is not None:
+            save_figure(plot_visits(visits, env_id), staging / "visits.png")
         agent.save(staging / "agent.npz")
         atomic_write_json(
             staging / "config.json",

@@ -13,7 +13,7 @@ comma  := ,
 # Worker processes of the reproduction's sweeps (results do not depend on it).
 JOBS   ?= 2
 
-.PHONY: install test test-latest lock demo lint bench reproduce-paper suite docs clean
+.PHONY: install test test-latest test-mujoco lock demo lint bench reproduce-paper suite docs clean
 
 install: $(STAMP)
 
@@ -41,6 +41,11 @@ lock:
 		--custom-compile-command "make lock" --output-file $(LOCK)
 
 # The suite against the newest releases, in a fresh venv of its own: drift found on purpose.
+# The tests of Gymnasium's MuJoCo tasks: installs the optional extra mujoco into .venv first.
+test-mujoco: install
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e ".[mujoco]"
+	$(BIN)/python -m pytest -q -m mujoco
+
 test-latest:
 	rm -rf .venv-latest
 	$(PYTHON) -m venv .venv-latest

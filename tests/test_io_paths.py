@@ -137,3 +137,11 @@ def test_a_folder_never_mixes_two_runs(
             assert files == []
         else:
             assert files == sorted(last[1]) and {(out / f).read_text() for f in files} == {last[0]}
+
+
+def test_a_run_over_a_fifo_is_refused_before_any_work(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    os.mkfifo(out / "b.txt")
+    with pytest.raises(FileExistsError, match="FIFO"):
+        check_run_dir(out, RUN, overwrite=True)

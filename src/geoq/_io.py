@@ -140,6 +140,8 @@ def check_run_dir(out: str | os.PathLike[str], names: Collection[str], overwrite
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise PermissionError(f"{ancestor} is not writable, so {out} cannot be written")
     earlier = sorted(n for n in names if (out / n).exists() or (out / n).is_symlink())
+    for name in earlier:  # replaced later: regular files only (or links to them)
+        output_path(out / name)
     if earlier and not overwrite:
         raise FileExistsError(
             f"{out} holds an earlier run ({', '.join(earlier)}); give another directory, or "

@@ -185,8 +185,12 @@ def check_video_path(path: Path) -> None:
         raise typer.BadParameter(
             f"{path} does not end in .gif (videos are animated GIFs)", param_hint="'--video'"
         )
-    if path.is_dir():
-        raise typer.BadParameter(f"{path} is a directory", param_hint="'--video'")
+    from geoq._io import output_path
+
+    try:
+        output_path(path)  # not a directory, FIFO, device or loop of links
+    except OSError as exc:
+        raise typer.BadParameter(str(exc), param_hint="'--video'") from exc
     if not path.parent.is_dir():
         raise typer.BadParameter(
             f"the directory {path.parent} does not exist; create it first",

@@ -313,9 +313,16 @@ def test_infinite_observation_bounds_scale_inputs_from_warm_up_data(tmp_path: Pa
     # The warm-up states span about half the box: finer length-scales, more BVs.
     agent = GPQAgent(_UnboundedPoint(), seed=0, gamma=0.9, max_bv=120, warmup_steps=60)
     assert agent.state.scaling_pending
+    # Before the warm-up fixes the scaling the agent acts as the warm-up does: the box's
+    # centre when deterministic, uniform over the box otherwise.
+    np.testing.assert_array_equal(agent.predict(np.array([0.0]))[0], [0.0])
+    np.testing.assert_array_equal(agent.predict(np.zeros((3, 1)))[0], np.zeros((3, 1)))
+    drawn = agent.predict(np.zeros((200, 1)), deterministic=False)[0]
+    assert drawn.shape == (200, 1) and np.all(np.abs(drawn) <= 1.0) and np.ptp(drawn) > 1.5
     with pytest.raises(ValueError, match=r"infinite bounds.*warm-up"):
-        agent.predict(np.array([0.0]))
-    agent.learn(30)  # not enough to fix the scaling: still refused, nothing streamed
+        agent.q_candidates(np.array([[0.0]]))
+    agent = GPQAgent(_UnboundedPoint(), seed=0, gamma=0.9, max_bv=120, warmup_steps=60)
+    agent.learn(30)  # not enough to fix the scaling: nothing streamed
     assert agent.state.scaling_pending and agent.gp.n_bv == 0
     agent.learn(370)
     assert not agent.state.scaling_pending

@@ -45,6 +45,7 @@ __all__ = [
     "observation_box",
     "outgrew",
     "scaling_from_states",
+    "warmup_actions",
 ]
 
 
@@ -298,6 +299,16 @@ def scaling_from_states(
 def outgrew(new: InputScaling, current: InputScaling, factor: float) -> bool:
     """Whether a scale of ``new`` passes ``factor`` x ``current``'s (time to rescale)."""
     return bool(np.any(np.asarray(new.scale) > factor * np.asarray(current.scale)))
+
+
+def warmup_actions(
+    low: FloatArray, high: FloatArray, n: int, deterministic: bool, rng: np.random.Generator
+) -> FloatArray:
+    """``n`` actions ``[n, d_a]`` of the warm-up's policy: uniform over the box, or its mean
+    (the box's centre) when ``deterministic``."""
+    if deterministic:
+        return np.tile(0.5 * (low + high), (n, 1))
+    return rng.uniform(low, high, size=(n, low.shape[0]))
 
 
 def make_progress_bar(total: int) -> Any:

@@ -221,10 +221,15 @@ class GPQAgent:
 
         ``deterministic=True`` maximises the posterior mean (greedy); otherwise
         the configured exploration is used (it draws from the agent's generator).
+        Before the warm-up has fixed a data-driven input scaling: the warm-up's policy.
         """
         if not isinstance(deterministic, bool | np.bool_):
             raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
         S, single = _env.as_observations(observation, self.obs_dim, self._obs_scale())
+        if self.state.scaling_pending:
+            a = _env.warmup_actions(self.action_low, self.action_high, len(S), deterministic,
+                                    self.rng)  # fmt: skip
+            return (a[0] if single else a), None
         mean, std = self.q_candidates(S)
         actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
         return (actions[0] if single else actions), None

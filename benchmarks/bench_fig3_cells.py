@@ -1,15 +1,15 @@
-"""One Fig. 3 cell of ``geoq reproduce --scale quick`` in isolation, per cell type and budget.
+"""One Fig. 3 cell of the quick scale's learning problem in isolation, per cell type and budget.
 
-The Fig. 3 stage is most of ``make demo``: at ``--scale quick`` (3 seeds, 5
-budgets) its 120 cells take ~170 s with one job, and a few cell types carry
-nearly all of it (issue 13): the ``resistance`` kernel (``K_BV`` re-factorised and
-the whitened posterior re-anchored after every change of the BV set) and the
-``pd_novelty`` variant of the geodesic kernels (the same, plus an eigendecomposition
-of the indefinite ``K_BV`` per change). Each row here is one cell exactly as
-``geoq.experiments.fig3.budget_cell`` runs it (training roll-outs of seed 0, the
-seed's evaluation pairs and Monte-Carlo truth, ``score_learner``), timed with
-one BLAS thread; ``x 3 seeds`` is what that cell type and budget adds to the quick
-run's Fig. 3 stage.
+Until issue 31 the Fig. 3 stage was most of ``make demo``: at ``--scale quick`` (3
+seeds, 5 budgets) its 120 cells took ~170 s with one job, and a few cell types carried
+nearly all of it (issue 13; since issue 31 they run at the paper scale only): the
+``resistance`` kernel (``K_BV`` re-factorised and the whitened posterior re-anchored
+after every change of the BV set) and the ``pd_novelty`` variant of the geodesic
+kernels (the same, plus an eigendecomposition of the indefinite ``K_BV`` per change).
+Each row here is one cell exactly as ``geoq.experiments.fig3.budget_cell`` runs it
+(training roll-outs of seed 0, the seed's evaluation pairs and Monte-Carlo truth,
+``score_learner``), timed with one BLAS thread; ``x 3 seeds`` is what that cell type
+and budget added to the former quick run's Fig. 3 stage.
 
 Learner settings: the quick run's tuning (``results/demo/tuning.json`` from
 ``make demo``) if it exists, else the values that tuning gives at root seed 2012
@@ -64,12 +64,14 @@ QUICK_TUNED: dict[str, dict[str, Any]] = {
 
 
 def tuned_learners() -> tuple[dict[str, QGPConfig], str]:
-    """Learner settings per kernel and where they came from."""
-    if TUNING_FILE.is_file():
-        configs = json.loads(TUNING_FILE.read_text())["result"]["configs"]
-        return {k: QGPConfig.from_dict(v) for k, v in configs.items()}, str(TUNING_FILE)
-    fallback = {k: QGPConfig(kernel=k, **v) for k, v in QUICK_TUNED.items()}  # type: ignore[arg-type]
-    return fallback, "QUICK_TUNED (no results/demo/tuning.json)"
+    """Learner settings per kernel and where they came from (the quick run tunes no
+    ``resistance`` kernel since issue 31: its settings come from :data:`QUICK_TUNED`)."""
+    learners = {k: QGPConfig(kernel=k, **v) for k, v in QUICK_TUNED.items()}  # type: ignore[arg-type]
+    if not TUNING_FILE.is_file():
+        return learners, "QUICK_TUNED (no results/demo/tuning.json)"
+    configs = json.loads(TUNING_FILE.read_text())["result"]["configs"]
+    learners.update({k: QGPConfig.from_dict(v) for k, v in configs.items()})
+    return learners, f"{TUNING_FILE} (missing kernels: QUICK_TUNED)"
 
 
 def main(quick: bool = False) -> None:
@@ -111,7 +113,7 @@ def main(quick: bool = False) -> None:
                 total += t
                 cells.append(f"{t:8.2f} s")
             print(f"  {variant:>10} {kernel:>12} " + "".join(f"{c:>14}" for c in cells))
-    print(f"  these cells x 3 seeds: {3 * total:.0f} s of the quick run's Fig. 3 stage")
+    print(f"  these cells x 3 seeds: {3 * total:.0f} s of the former quick run's Fig. 3 stage")
 
 
 if __name__ == "__main__":

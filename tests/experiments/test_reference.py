@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from geoq.experiments.config import VARIANTS, config_for_scale
 from geoq.experiments.reference import (
     HALF_WIDTH_FRACTION,
     REFERENCE_CONFIG,
@@ -24,6 +25,7 @@ from geoq.experiments.reference import (
     summarise,
 )
 from geoq.experiments.reproduce import reproduce
+from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
 
 DATA = Path(__file__).parent / "data"
 
@@ -38,6 +40,13 @@ def test_reference_config_is_the_recorded_one():
     assert json.loads(json.dumps(REFERENCE_CONFIG.as_dict())) == stored
     quick = _reference("reference_quick.json")["config"]
     assert quick["scale"] == "quick" and quick["budgets"] == [10, 25, 50, 100, 200]
+
+
+def test_quick_runs_every_paper_learner_and_paper_scale_every_learner():
+    """Issue 31: the beyond-paper cells left the quick preset only; the paper scale keeps them."""
+    quick, paper = config_for_scale("quick"), config_for_scale("paper")
+    assert set(PAPER_KERNELS) <= set(quick.kernels) and "faithful" in quick.variants
+    assert set(paper.kernels) == set(KERNEL_NAMES) and set(paper.variants) == set(VARIANTS)
 
 
 def test_reduced_reproduction_matches_the_reference(tmp_path):

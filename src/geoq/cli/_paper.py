@@ -42,7 +42,8 @@ def reproduce(
         typer.Option(
             "--scale",
             help=(
-                "quick: a small protocol that finishes in minutes on 2 cores (make demo). "
+                "quick: the paper's learners on a small protocol, well under a minute on 2 "
+                "cores (make demo). "
                 "paper: the full protocol of the paper (>= 10 seeds, ~10 basis budgets "
                 "between 5 and 200); about 10 minutes with --jobs 2 on a 2-core machine."
             ),

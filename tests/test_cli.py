@@ -8,6 +8,7 @@ the library and how it reports failures, independently of the science.
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import subprocess
@@ -47,6 +48,9 @@ def recorded(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
             assert callable(handler), "no SIGTERM handler while the command runs"
             handler(signal.SIGTERM, None)
 
+    # The other commands' modules import helpers from the real one: load them first, so the
+    # result does not depend on which tests ran before.
+    importlib.import_module("geoq.experiments.control")
     module = types.ModuleType("geoq.experiments.reproduce")
     module.reproduce = reproduce  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "geoq.experiments.reproduce", module)

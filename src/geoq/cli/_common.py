@@ -290,6 +290,17 @@ CONFIG_OPTION = typer.Option(
 )
 
 
+#: The sweep options of ``bench-control`` and ``suite`` (``reproduce`` words its help for
+#: the paper's protocol).
+JobsOption = Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")]
+BackendOption = Annotated[
+    Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
+]
+SchedulerOption = Annotated[
+    str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
+]
+
+
 OVERWRITE_OPTION = typer.Option(
     "--overwrite", help="Replace an earlier run in --out (refused without it)."
 )

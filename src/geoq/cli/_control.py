@@ -11,7 +11,10 @@ from geoq.cli._common import (
     CONFIG_OPTION,
     OVERWRITE_OPTION,
     Backend,
+    BackendOption,
+    JobsOption,
     KernelChoice,
+    SchedulerOption,
     agent_config,
     capped_jobs,
     check_agents,
@@ -201,13 +204,9 @@ def bench_control(
     eval_episodes: Annotated[
         int, typer.Option("--eval-episodes", min=1, help="Episodes per evaluation.")
     ] = 20,
-    jobs: Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")] = 1,
-    backend: Annotated[
-        Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
-    ] = Backend.loky,
-    scheduler: Annotated[
-        str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
-    ] = None,
+    jobs: JobsOption = 1,
+    backend: BackendOption = Backend.loky,
+    scheduler: SchedulerOption = None,
     config: Annotated[Path | None, CONFIG_OPTION] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
     overwrite: Annotated[

@@ -9,7 +9,10 @@ import typer
 
 from geoq.cli._common import (
     Backend,
+    BackendOption,
+    JobsOption,
     Scale,
+    SchedulerOption,
     SuiteScale,
     capped_jobs,
     check_out,
@@ -190,13 +193,9 @@ def suite(
             help="quick: 3 seeds, 4 budgets (minutes on 2 cores). full: 10 seeds, 8 budgets.",
         ),
     ] = SuiteScale.quick,
-    jobs: Annotated[int, typer.Option("--jobs", "-j", min=1, help="Worker processes.")] = 1,
-    backend: Annotated[
-        Backend, typer.Option("--backend", case_sensitive=False, help="loky or dask.")
-    ] = Backend.loky,
-    scheduler: Annotated[
-        str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
-    ] = None,
+    jobs: JobsOption = 1,
+    backend: BackendOption = Backend.loky,
+    scheduler: SchedulerOption = None,
     seed: Annotated[
         int | None, typer.Option("--seed", metavar="ROOT_SEED", min=0, help="Root seed.")
     ] = None,

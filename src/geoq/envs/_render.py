@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
+from typing import TypeVar
 
 import gymnasium
 import numpy as np
@@ -24,9 +25,11 @@ __all__ = [
     "TwoRoomsPainter",
     "check_render_mode",
     "pendulum_frame",
+    "state_to_render",
     "two_rooms_frame",
-    "warn_no_render_mode",
 ]
+
+_S = TypeVar("_S")
 
 #: Width and height of every frame, in pixels.
 FRAME_SIZE = 400
@@ -46,14 +49,20 @@ def check_render_mode(render_mode: str | None, supported: Sequence[str]) -> None
         raise ValueError(f"render_mode {render_mode!r} is not supported; use None or {choices}")
 
 
-def warn_no_render_mode(env: gymnasium.Env[FloatArray, FloatArray]) -> None:
-    """Gymnasium's warning for ``render()`` on an env made without a render mode."""
-    spec = env.spec.id if env.spec is not None else type(env).__name__
-    gymnasium.logger.warn(
-        "You are calling render method without specifying any render mode. "
-        f'You can specify the render_mode at initialization, e.g. gym.make("{spec}", '
-        'render_mode="rgb_array")'
-    )
+def state_to_render(env: gymnasium.Env[FloatArray, FloatArray], state: _S | None) -> _S | None:
+    """The ``state`` ``render()`` draws; None, with Gymnasium's warning, for an env made
+    without a render mode; a ``RuntimeError`` before the first ``reset()`` (no ``state``)."""
+    if env.render_mode is None:
+        spec = env.spec.id if env.spec is not None else type(env).__name__
+        gymnasium.logger.warn(
+            "You are calling render method without specifying any render mode. "
+            f'You can specify the render_mode at initialization, e.g. gym.make("{spec}", '
+            'render_mode="rgb_array")'
+        )
+        return None
+    if state is None:
+        raise RuntimeError("call reset() before render()")
+    return state
 
 
 def pendulum_frame(

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
-from geoq.envs._render import check_render_mode, pendulum_frame, warn_no_render_mode
+from geoq.envs._render import check_render_mode, pendulum_frame, state_to_render
 from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.pendulum import (
     START_NOISE,
@@ -205,13 +205,11 @@ class PendulumSwingUpEnv(gymnasium.Env[FloatArray, FloatArray]):
 
         Without a render mode: a warning (Gymnasium's convention) and ``None``.
         """
-        if self.render_mode is None:
-            warn_no_render_mode(self)
+        state = state_to_render(self, self.state)
+        if state is None:
             return None
-        if self.state is None:
-            raise RuntimeError("call reset() before render()")
         return pendulum_frame(
-            float(self.state[0]), self._last_torque, self.params.max_torque, SUCCESS_ANGLE
+            float(state[0]), self._last_torque, self.params.max_torque, SUCCESS_ANGLE
         )
 
     def _horizon(self) -> int:

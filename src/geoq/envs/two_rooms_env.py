@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from geoq._typing import FloatArray
-from geoq.envs._render import TwoRoomsPainter, check_render_mode, warn_no_render_mode
+from geoq.envs._render import TwoRoomsPainter, check_render_mode, state_to_render
 from geoq.envs._reset import episode_horizon, numeric_start_state, start_option
 from geoq.envs.two_rooms import (
     TWO_ROOMS_START_NOISE,
@@ -179,11 +179,8 @@ class TwoRoomsEnv(gymnasium.Env[FloatArray, FloatArray]):
 
         Without a render mode: a warning (Gymnasium's convention) and ``None``.
         """
-        if self.render_mode is None:
-            warn_no_render_mode(self)
+        if state_to_render(self, self.state) is None:
             return None
-        if self.state is None:
-            raise RuntimeError("call reset() before render()")
         return self._painter.frame(np.array(self._path))
 
     def _horizon(self) -> int:

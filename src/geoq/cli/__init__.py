@@ -41,7 +41,7 @@ from __future__ import annotations
 
 from geoq.cli._about import info, version
 from geoq.cli._common import Backend, KernelChoice, Scale, SuiteScale, app
-from geoq.cli._control import bench_control, evaluate, train
+from geoq.cli._control import bench_control, control_suite, evaluate, train
 from geoq.cli._paper import reproduce, suite
 
 __all__ = ["Backend", "KernelChoice", "Scale", "SuiteScale", "app", "main"]
@@ -52,6 +52,7 @@ app.command()(suite)
 app.command()(train)
 app.command()(evaluate)
 app.command("bench-control")(bench_control)
+app.command("control-suite")(control_suite)
 app.command()(version)
 app.command()(info)
 

@@ -299,6 +299,24 @@ BackendOption = Annotated[
 SchedulerOption = Annotated[
     str | None, typer.Option("--scheduler", metavar="ADDRESS", help="Dask scheduler.")
 ]
+#: ``--baseline`` of ``bench-control`` and ``control-suite``.
+BaselinesOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--baseline",
+        help=(
+            "Also run a baseline with its default settings, same seeds, budgets and "
+            "evaluation: sac (Stable-Baselines3; needs pip install 'geoq[baselines]', "
+            "which pulls torch)."
+        ),
+    ),
+]
+#: ``--overwrite`` of the benchmarks, whose finished cells outlive their report.
+BENCHMARK_OVERWRITE_OPTION = typer.Option(
+    "--overwrite",
+    help="Replace the report of a benchmark of other settings in --out (finished "
+    "cells are kept; refused without it).",
+)
 
 
 OVERWRITE_OPTION = typer.Option(

@@ -8,10 +8,12 @@ from typing import Annotated
 import typer
 
 from geoq.cli._common import (
+    BENCHMARK_OVERWRITE_OPTION,
     CONFIG_OPTION,
     OVERWRITE_OPTION,
     Backend,
     BackendOption,
+    BaselinesOption,
     JobsOption,
     KernelChoice,
     SchedulerOption,
@@ -27,7 +29,7 @@ from geoq.cli._common import (
     reported,
 )
 
-__all__ = ["bench_control", "evaluate", "train"]
+__all__ = ["bench_control", "control_suite", "evaluate", "train"]
 
 
 def train(
@@ -185,17 +187,7 @@ def bench_control(
             help="Replay mode(s) to compare: none, uniform, graph (repeat the option).",
         ),
     ] = None,
-    baselines: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--baseline",
-            help=(
-                "Also run a baseline with its default settings, same seeds, budgets and "
-                "evaluation: sac (Stable-Baselines3; needs pip install 'geoq[baselines]', "
-                "which pulls torch)."
-            ),
-        ),
-    ] = None,
+    baselines: BaselinesOption = None,
     seeds: Annotated[int, typer.Option("--seeds", min=1, help="Seeds per setting.")] = 10,
     timesteps: Annotated[int, typer.Option("--timesteps", min=1, help="Steps per run.")] = 3_000,
     eval_every: Annotated[
@@ -209,14 +201,7 @@ def bench_control(
     scheduler: SchedulerOption = None,
     config: Annotated[Path | None, CONFIG_OPTION] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
-    overwrite: Annotated[
-        bool,
-        typer.Option(
-            "--overwrite",
-            help="Replace the report of a benchmark of other settings in --out (finished "
-            "cells are kept; refused without it).",
-        ),
-    ] = False,
+    overwrite: Annotated[bool, BENCHMARK_OVERWRITE_OPTION] = False,
 ) -> None:
     """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
     from geoq.agents.acquisition import EXPLORATION_MODES
@@ -260,3 +245,63 @@ def bench_control(
             progress=progress, overwrite=overwrite,
         )  # fmt: skip
     typer.echo(f"geoq bench-control: done; {out / 'CONTROL.md'}")
+
+
+def control_suite(
+    out: Annotated[
+        Path,
+        typer.Option(
+            "--out",
+            file_okay=False,
+            help="Output directory: CONTROL_SUITE.md, control_suite.json and one benchmark "
+            "directory per task (finished cells are kept: rerun to resume).",
+        ),
+    ] = Path("results/control-suite"),
+    tasks: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--task",
+            help="Task id (repeat the option; default: every task this machine can run: "
+            "geoq/PendulumSwingUp-v0, MountainCarContinuous-v0, Pendulum-v1, geoq/TwoRooms-v0, "
+            "and with the mujoco extra InvertedPendulum-v5 and Reacher-v5).",
+        ),
+    ] = None,
+    seeds: Annotated[
+        int | None,
+        typer.Option(
+            "--seeds",
+            min=1,
+            help="Seeds per task instead of each protocol's (an indicative run; the report "
+            "says so).",
+        ),
+    ] = None,
+    baselines: BaselinesOption = None,
+    jobs: JobsOption = 1,
+    backend: BackendOption = Backend.loky,
+    scheduler: SchedulerOption = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress")] = True,
+    overwrite: Annotated[bool, BENCHMARK_OVERWRITE_OPTION] = False,
+) -> None:
+    """The control tasks, each under its protocol and goal: CONTROL_SUITE.md (resumable)."""
+    from geoq.experiments.control import check_baselines
+    from geoq.experiments.control_suite import control_goals, run_control_suite
+    from geoq.experiments.sac_baseline import BASELINES
+
+    check_scheduler(scheduler, backend)
+    check_choices(baselines, BASELINES, "--baseline")
+    try:
+        check_baselines(baselines or [])
+    except ValueError as exc:
+        raise typer.BadParameter(one_line(exc), param_hint="'--baseline'") from exc
+    try:
+        control_goals(tasks)
+    except ValueError as exc:
+        raise typer.BadParameter(one_line(exc), param_hint="'--task'") from exc
+    check_out(out)
+    jobs = capped_jobs(jobs, scheduler)
+    with reported("control-suite", "finished cells are kept; rerun to resume"):
+        run_control_suite(
+            out, tasks, seeds=seeds, baselines=baselines or [], jobs=jobs,
+            backend=backend.value, scheduler=scheduler, progress=progress, overwrite=overwrite,
+        )  # fmt: skip
+    typer.echo(f"geoq control-suite: done; {out / 'CONTROL_SUITE.md'}")

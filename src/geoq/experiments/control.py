@@ -58,12 +58,14 @@ __all__ = [
     "ControlCell",
     "Evaluation",
     "HandMadeController",
+    "benchmark_settings",
     "check_baselines",
     "check_benchmark_dir",
     "control_cell",
     "control_report",
     "evaluate_agent",
     "evaluation_success",
+    "median_interval",
     "run_control_benchmark",
     "steps_to_success",
     "train",
@@ -178,6 +180,22 @@ def _benchmark_settings(**settings: Any) -> dict[str, Any]:
     return dict(json.loads(json.dumps(settings)))
 
 
+# fmt: off
+def benchmark_settings(
+    env_id: str, kernels: Sequence[str], seeds: int, timesteps: int, eval_every: int,
+    eval_episodes: int, configs: Sequence[Mapping[str, Any]] = ({},),
+    baselines: Sequence[str] = (),
+) -> dict[str, Any]:
+    # fmt: on
+    """The settings a benchmark's report is made of (``benchmark.json``), as
+    :func:`run_control_benchmark` records them: a rerun of the same settings resumes."""
+    return _benchmark_settings(
+        env=env_id, kernels=list(kernels), seeds=seeds, timesteps=timesteps,
+        eval_every=eval_every, eval_episodes=eval_episodes, configs=[dict(c) for c in configs],
+        baselines=list(baselines),
+    )  # fmt: skip
+
+
 def check_benchmark_dir(out: str | Path, settings: Mapping[str, Any], overwrite: bool) -> None:
     """An ``OSError`` unless ``out`` can take a benchmark of ``settings``: writable, and its
     report (``benchmark.json``) of the same settings (a rerun resumes), or none, or
@@ -231,7 +249,7 @@ def steps_to_success(row: Mapping[str, Any], threshold: float = 0.9) -> float:
     return math.inf
 
 
-def _median_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+def median_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
     """Median with a distribution-free (binomial order-statistic) interval."""
 
     v = np.sort(np.asarray(values, dtype=np.float64))
@@ -287,7 +305,7 @@ def control_report(
     for label in labels:
         sel = [r for r in rows if r["label"] == label]
         steps = [steps_to_success(r, threshold) for r in sel]
-        med, lo, hi = _median_interval(steps)
+        med, lo, hi = median_interval(steps)
         final_s = mean_interval([r["eval_success"][-1] for r in sel])
         final_r = mean_interval([r["eval_return"][-1] for r in sel])
         ms = float(np.median([r["ms_per_step"] for r in sel]))
@@ -366,11 +384,8 @@ def run_control_benchmark(
     """
 
     out = Path(out)
-    settings = _benchmark_settings(
-        env=env_id, kernels=list(kernels), seeds=seeds, timesteps=timesteps,
-        eval_every=eval_every, eval_episodes=eval_episodes, configs=[dict(c) for c in configs],
-        baselines=list(baselines),
-    )  # fmt: skip
+    settings = benchmark_settings(env_id, kernels, seeds, timesteps, eval_every, eval_episodes,
+                                  configs, baselines)  # fmt: skip
     check_baselines(baselines)
     check_benchmark_dir(out, settings, overwrite)
     cells = [

@@ -24,7 +24,8 @@ protocol and seeds); the others are issues 28 and 33's. The MuJoCo tasks need th
 optional extra ``mujoco``: without it they are listed as skipped, not run.
 
 Files: ``CONTROL_SUITE.md`` (one line per task: the measured figure with its 95%
-interval, the verdict, ms per step against SAC's) and ``control_suite.json``, written
+interval, the verdict, ms per step against SAC's) and ``control_suite.json`` (the same;
+``null`` for a median not reached or an interval without an end), written
 atomically after every task has finished; each task's own ``CONTROL.md``,
 ``control.csv`` and cells under ``out/<task>/`` (finished cells are kept: rerun to
 resume).
@@ -214,9 +215,21 @@ def run_control_suite(
         results.append(verdict)
     summary = {"tasks": results, "baselines": list(baselines)}
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "control_suite.json", summary)
+    atomic_write_json(out / "control_suite.json", _strict_json(summary))
     atomic_write_text(out / "CONTROL_SUITE.md", control_suite_report(results, baselines))
     return summary
+
+
+def _strict_json(obj: Any) -> Any:
+    """``obj`` with every non-finite float as None (JSON has no infinity): a median of
+    steps that is not reached, an interval without an end."""
+    if isinstance(obj, dict):
+        return {k: _strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_strict_json(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
 
 
 def _settings(goal: ControlGoal, baselines: Sequence[str]) -> dict[str, Any]:

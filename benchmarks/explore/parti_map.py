@@ -58,6 +58,11 @@ class MapConfig:
     frontier_after_goal: str = "goal"  # "goal" | "lo" | "hi"
     tol: float = 1e-3  # value iteration stops when no value moves more than this
     max_sweeps: int = 2000
+    # a move that stays inside its leaf is no self-loop: such transitions are left out of
+    # the tried backups, and a predicted move is repeated until it leaves the leaf
+    # (cost and discount of those steps), so cells larger than a move do not trap
+    macro: bool = False
+    max_macro: int = 50
     # an untried (leaf, candidate) is predicted blocked (a self-loop) when a transition
     # from the same leaf was blocked with a candidate at cosine >= this (None: never)
     blocked_cos: float | None = None
@@ -336,7 +341,15 @@ class PartiMap:
             for sn, gl in zip(sums_n, glob, strict=True)
         ]
         centre = 0.5 * (self.leaf_lo + self.leaf_hi)  # [L, d]
-        ends = centre[:, None, :] + np.stack(mean[:d], axis=-1)  # [L, K, d]
+        move = np.stack(mean[:d], axis=-1)  # [L, K, d]
+        n_steps = np.ones(move.shape[:2])  # [L, K]
+        if self.c.macro:  # repeat the move until it leaves the leaf (from the centre)
+            half = 0.5 * (self.leaf_hi - self.leaf_lo)  # [L, d]
+            with np.errstate(divide="ignore"):
+                ratio = half[:, None, :] / np.abs(move)
+            n_steps = np.clip(np.floor(ratio.min(axis=2)) + 1, 1, self.c.max_macro)
+        self.n_steps = n_steps
+        ends = centre[:, None, :] + n_steps[:, :, None] * move
         ends = np.clip(ends, self.low, self.high)
         target = self.locate(ends.reshape(-1, d)).reshape(-1, K)
         known = local | (glob_cnt > 0)[None, :]
@@ -359,9 +372,13 @@ class PartiMap:
         L, K = self.leaf_lo.shape[0], self.K
         blocked = self._blocked()
         target, r_hat, d_hat = self._predictions(blocked)
-        idx = self.leaf_s * K + self.k
+        visited = np.bincount(self.leaf_s, minlength=L) > 0  # [L]
+        use = np.ones(self.k.size, dtype=bool)
+        if self.c.macro:
+            use = ~((self.leaf_s2 == self.leaf_s) & ~blocked & ~self.done)
+        self._use = use
+        idx = self.leaf_s[use] * K + self.k[use]
         n_ck = np.bincount(idx, minlength=L * K).reshape(L, K)
-        visited = n_ck.sum(1) > 0  # [L]
         tried = n_ck > 0
         leaf_blocked = np.bincount(self.leaf_s[blocked], minlength=L) > 0
         lo, _ = self._bounds()
@@ -386,11 +403,14 @@ class PartiMap:
 
     def _q(self, V, idx, n_ck, target, r_hat, d_hat, pred, unvisited_value) -> np.ndarray:
         L, K, g = n_ck.shape[0], self.K, self.c.gamma
-        backup = self.r + g * (~self.done) * V[self.leaf_s2]
+        u = self._use
+        backup = self.r[u] + g * (~self.done[u]) * V[self.leaf_s2[u]]
         tot = np.bincount(idx, weights=backup, minlength=L * K).reshape(L, K)
         Q = np.where(n_ck > 0, tot / np.maximum(n_ck, 1), -np.inf)
         vt = np.where(target >= 0, V[np.maximum(target, 0)], unvisited_value)
-        return np.where(pred, r_hat + g * (1 - d_hat) * vt, Q)
+        n = self.n_steps
+        gn = g**n
+        return np.where(pred, r_hat * (1 - gn) / (1 - g) + gn * (1 - d_hat) * vt, Q)
 
     def _solve(self, V, idx, n_ck, target, r_hat, d_hat, pred, visited, unvisited_value):
         V = V.copy()

@@ -106,6 +106,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     p.add_argument("--quantile", type=float, default=0.9, help="the cell side's quantile")
     p.add_argument("--side-scale", type=float, default=1.0, help="the cell side times this")
+    p.add_argument("--macro", action="store_true", help="moves inside a leaf repeat to its exit")
     p.add_argument("--no-split", action="store_true", help="the fixed data-sized grid")
     a = p.parse_args(argv)
     config = MapConfig(
@@ -117,6 +118,7 @@ def main(argv: list[str] | None = None) -> None:
         fallback=a.fallback,
         quantile=a.quantile,
         side_scale=a.side_scale,
+        macro=a.macro,
     )
     print(f"# {a.env} {config}")
     firsts = []

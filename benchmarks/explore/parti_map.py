@@ -8,7 +8,8 @@ cells that it refines where the data show an obstacle.
   0.9-quantile of the observed ``|s' - s|`` after a warm-up of random candidates
   (the data's own step size). Each grid cell is the root of a k-d tree: a leaf
   is split where one candidate's outcomes in it disagree, some *moved* and some
-  *blocked* (covered less than a quarter of that candidate's median move), along
+  *blocked* (covered less than a quarter of that candidate's typical move, the
+  0.9-quantile of its moves: a median is dragged to 0 by repeated blocked tries), along
   the dimension and threshold that best separate the blocked starts from the
   moved ones (Moore & Atkeson's parti-game, Machine Learning 21, 1995).
 * **Moves.** A transition counts for the candidate it took. A tried
@@ -51,7 +52,7 @@ class MapConfig:
     n_candidates: int = 21  # GPQAgent's default (a Sobol' set of 32 in 2-D)
     quantile: float = 0.9  # the cell side: this quantile of |s' - s| per dimension
     side_scale: float = 1.0  # ... times this
-    blocked_fraction: float = 0.25  # blocked: moved less than this x the candidate's median
+    blocked_fraction: float = 0.25  # blocked: less than this x the candidate's typical move
     min_split_fraction: float = 1 / 16  # no leaf narrower than this x the cell side
     split: bool = True  # False: the fixed data-sized grid (prototype 1's map)
     exploit: str = "tried"  # "tried" | "clean" | "all"
@@ -189,11 +190,11 @@ class PartiMap:
         self.stats.splits += 1
 
     def _blocked(self) -> np.ndarray:
-        """Blocked transitions ``[N]``: less than a fraction of their candidate's median move."""
+        """Blocked transitions ``[N]``: less than a fraction of their candidate's typical move."""
         dist = np.linalg.norm((self.S2 - self.S) / self.side, axis=1)  # [N]
         med = np.zeros(self.K)
         for k in np.unique(self.k):
-            med[k] = np.median(dist[self.k == k])
+            med[k] = np.quantile(dist[self.k == k], self.c.quantile)
         return dist < self.c.blocked_fraction * med[self.k]
 
     def _best_split(self, leaf: int, blocked: np.ndarray) -> tuple[int, float] | None:
@@ -282,7 +283,7 @@ class PartiMap:
         new_end = not np.any(self.leaf_s2[:-1][same] == self.leaf_s2[-1])
         split = self._refine({c})
         dist = np.linalg.norm((self.S2 - self.S)[self.k == k] / self.side, axis=1)
-        was_blocked = dist[-1] < self.c.blocked_fraction * np.median(dist)
+        was_blocked = dist[-1] < self.c.blocked_fraction * np.quantile(dist, self.c.quantile)
         self.changed |= bool(terminated or split or new_end or was_blocked)
 
     # ----------------------------------------------------------------- planning

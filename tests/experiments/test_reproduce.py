@@ -149,3 +149,28 @@ def test_worker_processes_do_not_change_the_results(run_dir, tmp_path):
     reproduce(tmp_path, config=TINY, progress=False, jobs=2)
     for name in ("tuning.csv", "fig3.csv", "fig1.csv", "fig2.csv"):
         assert (tmp_path / name).read_bytes() == (run_dir / name).read_bytes(), name
+
+
+def test_long_cells_start_first_and_every_cell_is_kept():
+    """Issue 31: the re-anchoring learners' cells are dispatched first, largest budget first;
+    the rest keep their order (the rows are sorted afterwards, so the files do not change:
+    ``test_worker_processes_do_not_change_the_results``)."""
+    from geoq.experiments.fig3 import BudgetCell, longest_first
+
+    def cell(kernel: str, max_bv: int, pd: bool = False, seed: int = 0) -> BudgetCell:
+        return BudgetCell(
+            kernel=kernel, max_bv=max_bv, seed=seed, root_seed=0, train_rollouts=1,
+            train_steps=1, learner={"pd_novelty": pd}, truth_dir="", truth={},
+            variant="pd_novelty" if pd else "tuned",
+        )  # fmt: skip
+
+    cells = [
+        cell("euclidean", 200), cell("resistance", 10), cell("nearest", 5),
+        cell("resistance", 200, seed=1), cell("nearest", 100, pd=True), cell("resistance", 200),
+    ]  # fmt: skip
+    got = longest_first(cells)
+    assert [(c.kernel, c.max_bv, c.seed) for c in got] == [
+        ("resistance", 200, 1), ("resistance", 200, 0), ("nearest", 100, 0),
+        ("resistance", 10, 0), ("euclidean", 200, 0), ("nearest", 5, 0),
+    ]  # fmt: skip
+    assert sorted(map(repr, got)) == sorted(map(repr, cells))

@@ -9,6 +9,7 @@ import pytest
 import scipy.linalg
 
 from geoq.gp.numerics import (
+    VAR_ROUNDING,
     NotPSDError,
     NumericalWarning,
     cholesky_cannot_succeed,
@@ -34,6 +35,62 @@ def test_whitened_covariance_projection_clips_the_spectrum_onto_unit_interval():
     S2, projected2 = project_whitened_covariance(valid)
     assert projected2 == 0
     assert np.array_equal(S2, 0.5 * (valid + valid.T))  # symmetrised only
+
+
+def _frobenius_projection(S: np.ndarray) -> tuple[np.ndarray, int]:
+    """Oracle: the full eigendecomposition, every eigenvalue clipped onto [0, 1]."""
+    w, U = np.linalg.eigh(0.5 * (S + S.T))
+    bad = int(np.count_nonzero((w < -VAR_ROUNDING) | (w > 1.0 + VAR_ROUNDING)))
+    return (U * np.clip(w, 0.0, 1.0)) @ U.T, bad
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize(
+    "above",
+    [
+        [1.5],
+        [1.0 + 1e-6, 2.0, 30.0],  # a resistance re-anchoring: a few to many above 1
+        [3e7, 2e6],  # pd_novelty: huge, the subtraction's result is checked
+        list(np.linspace(1.1, 5.0, 40)),
+    ],
+)
+def test_projection_above_one_matches_the_full_eigendecomposition(seed, above):
+    """Issue 31: only the eigenpairs above 1 are computed when S >= 0 holds; the result is
+    the Frobenius projection (oracle: numpy's full eigendecomposition) to rounding."""
+    rng = np.random.default_rng(seed)
+    m = 60
+    w = np.concatenate([rng.uniform(0.0, 1.0, m - len(above) - 2), [0.0, -1e-12], above])
+    S = _symmetric_with_spectrum(w, rng)
+    got, projected = project_whitened_covariance(S)
+    want, n_bad = _frobenius_projection(S)
+    assert projected == n_bad == len(above)
+    assert np.array_equal(got, got.T)
+    tol = 100 * m * np.finfo(float).eps * max(1.0, float(np.max(above)))
+    assert np.max(np.abs(got - want)) <= tol
+    lam = np.linalg.eigvalsh(got)
+    assert lam.min() >= -VAR_ROUNDING and lam.max() <= 1.0 + VAR_ROUNDING
+
+
+def test_projection_above_one_needs_no_full_eigendecomposition(monkeypatch):
+    """The speed path of a re-anchoring (issue 31): S >= 0 holds, S <= I does not."""
+    import geoq.gp.numerics as numerics
+
+    def forbidden(A: np.ndarray) -> None:
+        raise AssertionError("full eigendecomposition called")
+
+    monkeypatch.setattr(numerics, "_eigh", forbidden)
+    rng = np.random.default_rng(4)
+    S = _symmetric_with_spectrum(np.array([0.0, 0.2, 0.5, 2.0, 7.0]), rng)
+    assert project_whitened_covariance(S)[1] == 2
+
+
+def test_projection_of_a_negative_spectrum_falls_back_to_the_full_clip():
+    rng = np.random.default_rng(3)
+    S = _symmetric_with_spectrum(np.array([-0.3, 0.2, 0.5, 2.0, 7.0]), rng)
+    got, projected = project_whitened_covariance(S)
+    want, n_bad = _frobenius_projection(S)
+    assert projected == n_bad == 3
+    assert np.allclose(got, want, atol=1e-12)
 
 
 # -- issue 13: jittered tries proven hopeless by the spectrum are skipped, same result -----

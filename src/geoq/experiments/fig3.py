@@ -44,6 +44,7 @@ __all__ = [
     "TruthCell",
     "budget_cell",
     "load_truth",
+    "longest_first",
     "score_learner",
     "truth_cell",
 ]
@@ -152,6 +153,19 @@ class BudgetCell:
     variant: str = "tuned"
     """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.config.VARIANTS`;
     a variant's row has no per-roll-out refit columns (its cost is not needed there)."""
+
+
+def longest_first(cells: Sequence[BudgetCell]) -> list[BudgetCell]:
+    """``cells`` in the order a sweep should start them: the learners that re-anchor their
+    posterior at every change of the basis set (the ``resistance`` kernel, ``pd_novelty``:
+    an O(max_bv^3) factorisation per change, seconds per cell) first, largest budget first;
+    the others keep their order. The rows do not depend on it; two workers finish together
+    instead of one waiting on the other's last long cell."""
+
+    def reanchors(cell: BudgetCell) -> bool:
+        return cell.kernel == "resistance" or bool(cell.learner.get("pd_novelty"))
+
+    return sorted(cells, key=lambda c: (not reanchors(c), -c.max_bv if reanchors(c) else 0))
 
 
 def load_truth(truth_dir: str | Path, truth: dict[str, Any]) -> dict[str, Any]:

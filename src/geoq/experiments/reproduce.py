@@ -47,6 +47,7 @@ from geoq.experiments.fig3 import (
     BudgetCell,
     TruthCell,
     budget_cell,
+    longest_first,
     truth_cell,
 )
 from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
@@ -163,7 +164,9 @@ def reproduce(
         if k in cfg.kernels
         for b in cfg.budgets
     ]
-    every = run_sweep(cells, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
+    # Long cells first (the rows are sorted below; their content does not depend on it).
+    ordered = longest_first(cells)
+    every = run_sweep(ordered, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
     rows = [r for r in every if "variant" not in r]
     rows.sort(key=lambda r: (KERNEL_NAMES.index(r["kernel"]), int(r["max_bv"]), int(r["seed"])))
     variant_rows = [r for r in every if "variant" in r]

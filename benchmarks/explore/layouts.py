@@ -42,6 +42,12 @@ LAYOUTS: dict[str, Layout] = {
     "two-walls": Layout(
         walls=((1 / 3, 0.8, 1.0), (2 / 3, 0.0, 0.2)), start=(0.15, 0.2), goal=(0.85, 0.8)
     ),
+    # Added after the design was fixed: a door half as wide, in the middle of the wall.
+    "narrow-door": Layout(walls=((0.5, 0.45, 0.55),), start=(0.25, 0.2), goal=(0.75, 0.2)),
+    # TwoRooms with moves half as long (twice the steps per route, time limit 400).
+    "small-steps": Layout(
+        walls=((0.5, 0.8, 1.0),), start=(0.25, 0.2), goal=(0.75, 0.2), step_size=0.025, horizon=400
+    ),
 }
 
 

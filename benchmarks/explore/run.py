@@ -80,7 +80,7 @@ def run_seed(env_name: str, seed: int, config: MapConfig, steps: int, every: int
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--env", default="two-rooms", help="two-rooms, door-bottom or two-walls")
+    p.add_argument("--env", default="two-rooms", help="two-rooms or a layouts.LAYOUTS name")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     p.add_argument("--steps", type=int, default=2000)
     p.add_argument("--every", type=int, default=250)

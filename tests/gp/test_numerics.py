@@ -157,3 +157,13 @@ def test_a_try_called_hopeless_does_fail() -> None:
             elif w.min() + shift > 1e-6 * np.abs(w).max():
                 scipy.linalg.cholesky(K + shift * np.eye(K.shape[0]), lower=True)
     assert recognised > 50
+
+
+def test_eigenvalues_above_one_by_rounding_only_leave_the_covariance_alone():
+    """A re-anchored S whose Cholesky check failed by rounding only: no projection."""
+    from geoq.gp.numerics import _clip_above_one
+
+    rng = np.random.default_rng(5)
+    S = _symmetric_with_spectrum(np.array([0.1, 0.4, 1.0 + 0.5 * VAR_ROUNDING]), rng)
+    out = _clip_above_one(S)
+    assert out is not None and out[1] == 0 and np.array_equal(out[0], S)

@@ -296,13 +296,13 @@ def _clip_above_one(S: FloatArray) -> tuple[FloatArray, int] | None:
     The subtraction's error is of order ``m eps max(w)``: a result that bound does not
     put far inside ``[-VAR_ROUNDING, 1 + VAR_ROUNDING]`` is checked (two Cholesky
     factorisations) and ``None`` is returned when the check fails (the caller falls
-    back to the full eigendecomposition). ``None`` also when no eigenvalue lies above
-    ``1 + VAR_ROUNDING`` (then ``S`` failed its check by rounding only).
+    back to the full eigendecomposition). ``S`` itself when no eigenvalue lies above
+    ``1 + VAR_ROUNDING`` (it failed its Cholesky check by rounding only).
     """
     w, U = scipy.linalg.eigh(S, subset_by_value=(1.0, np.inf), check_finite=False)
     n_bad = int(np.count_nonzero(w > 1.0 + VAR_ROUNDING))
     if n_bad == 0:
-        return None
+        return S, 0
     out = S - (U * (w - 1.0)) @ U.T
     out = 0.5 * (out + out.T)
     bound = S.shape[0] * np.finfo(np.float64).eps * float(np.max(w))

@@ -29,10 +29,10 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    targets of every stored transition are re-bootstrapped to convergence on the
    current basis set and kernel (:mod:`geoq.agents.fitted_q`), then the
    posterior is refit to them (DTC, :meth:`SparseOnlineGP.refit`).
-5. **Standardisation.** The GP sees ``z = (y - y_mean) / y_scale``; after each
-   phase ``y_mean, y_scale`` become the mean and standard deviation of the
-   targets, so the prior mean (the value of what was never tried) is the
-   average value seen and the prior std is the spread of values.
+5. **Standardisation.** The GP sees ``z = (y - y_mean) / y_scale``, set after each
+   phase by ``prior`` (:class:`GPQConfig`): by default the prior mean, the value of
+   what was never tried, is the upper value bound (optimism), the prior std half
+   the bounds' range.
 6. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`,
    ``[r_min, r_max] / (1 - gamma)`` of the rewards declared or observed so far,
    widened by the rewards of terminating steps (received once, they count by

@@ -58,6 +58,8 @@ class OnlineGPState:
         self._counts = Counters()  # every counter, and whether the warning was shown
         self._changes = 0
         self._factor_memo: FactorMemo | None = None  # the last K_BV factorised
+        self._batch = 0  # odd inside a batch of updates (geoq.gp._stream.stream)
+        self._last_projected = (-1, 0)  # (batch, eigenvalues) of the last projection
 
     def _set_dim(self, d: int) -> None:
         if self._dim is None:
@@ -144,7 +146,9 @@ class OnlineGPState:
         return self._work, self._T, self._counts.step
 
     #: Scratch buffers: not part of the model's state.
-    _SCRATCH = frozenset({"_T", "_kbuf", "_work", "kernel", "config", "_factor_memo"})
+    _SCRATCH = frozenset(
+        {"_T", "_kbuf", "_work", "kernel", "config", "_factor_memo", "_batch", "_last_projected"}
+    )
 
     @contextmanager
     def _all_or_nothing(self) -> Iterator[None]:

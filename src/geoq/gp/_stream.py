@@ -48,6 +48,14 @@ def stream(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
     """Apply the rows of ``X`` [N, d], ``y`` [N] to ``gp`` in order (inputs validated)."""
     if X.shape[0] == 0:
         return
+    gp._batch += 1  # a new batch: the factor memo's rounding tolerance holds inside it
+    try:
+        _stream_batch(gp, X, y)
+    finally:
+        gp._batch += 1
+
+
+def _stream_batch(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
     gp._set_dim(X.shape[1])
     fast = se_loop_parameters(gp.kernel, gp._dim)
     if fast is None:

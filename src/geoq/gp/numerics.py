@@ -249,7 +249,9 @@ def robust_cholesky(
             return L, int(jitter > 0.0), n_clipped
 
 
-def project_whitened_covariance(S: FloatArray) -> tuple[FloatArray, int]:
+def project_whitened_covariance(
+    S: FloatArray, *, many_above_one: bool = False
+) -> tuple[FloatArray, int]:
     """``S`` [m, m] with its spectrum projected onto ``[0, 1]``, and the number of
     eigenvalues projected.
 
@@ -263,7 +265,10 @@ def project_whitened_covariance(S: FloatArray) -> tuple[FloatArray, int]:
     Cholesky checks first (far cheaper than an eigendecomposition). When only ``S <= I``
     fails (a re-anchoring's usual case) only the eigenpairs above 1 are computed
     (:func:`_clip_above_one`: one tridiagonalisation, a few eigenvectors); the full
-    eigendecomposition is the fallback.
+    eigendecomposition is the fallback, and the first choice with ``many_above_one``
+    (the caller expects many eigenvalues above 1: with more than about ``m / 8`` of them
+    the partial eigendecomposition costs 2-4x the full one, ``docs/design-notes.md``).
+    Both give the same projection to rounding.
     """
     S = 0.5 * (S + S.T)
     # S <= I first: after a graph kernel's re-anchoring that is the bound S breaks.
@@ -271,7 +276,7 @@ def project_whitened_covariance(S: FloatArray) -> tuple[FloatArray, int]:
     above_zero = is_positive_definite(S, VAR_ROUNDING)
     if below_one and above_zero:
         return S, 0
-    if above_zero:
+    if above_zero and not many_above_one:
         clipped = _clip_above_one(S)
         if clipped is not None:
             return clipped

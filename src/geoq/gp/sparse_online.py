@@ -224,11 +224,12 @@ class SparseOnlineGP(OnlineGPState):
         return None
 
     # ------------------------------------------------------- resync / refit
-    def _factor_gram(self) -> FloatArray:
+    def _factor_gram(self, batch: int | None = None) -> FloatArray:
         """Upper factor ``R`` [m, m] of the current ``K_BV`` (read-only; the memo of
-        :func:`~geoq.gp._resync.factor_gram` is this GP's), repairs counted."""
+        :func:`~geoq.gp._resync.factor_gram` is this GP's), repairs counted; ``batch``:
+        the batch of updates of a resync."""
         R, jit, clips, self._factor_memo = factor_gram(
-            self.kernel, self._bv[: self._m], self.config, self._factor_memo
+            self.kernel, self._bv[: self._m], self.config, self._factor_memo, batch
         )
         self._counts.python["jitter_events"] += jit
         self._counts.python["eig_clips"] += clips
@@ -263,16 +264,26 @@ class SparseOnlineGP(OnlineGPState):
         posterior is transformed so that the posterior of ``f_BV`` (mean ``R^T mu``,
         covariance ``R^T S R``) is unchanged. For other kernels the factor updates
         are backward stable and only the O(m)-updated scores accumulate rounding.
+        The projection that follows starts with the full eigendecomposition when the
+        last one of the same batch projected more than an eighth of the spectrum
+        (:func:`~geoq.gp.numerics.project_whitened_covariance`; consecutive counts
+        are alike: ``docs/design-notes.md``).
         """
         self._changes = 0
         m = self._m
         if m == 0:
             return
         if self.kernel.tracks_basis:
-            R_new = self._factor_gram()
+            R_new = self._factor_gram(self._batch)
+            batch, last = self._last_projected
             self._mu[:m], self._S[:m, :m], projected = reanchor(
-                self._R[:m, :m], R_new, self._mu[:m], self._S[:m, :m]
+                self._R[:m, :m],
+                R_new,
+                self._mu[:m],
+                self._S[:m, :m],
+                many_above_one=batch == self._batch and 8 * last > m,
             )
+            self._last_projected = (self._batch, projected)
             self._counts.python["covariance_projections"] += projected
             self._R[:m, :m] = R_new
         self._refresh_scores()

@@ -1,0 +1,440 @@
+"""A map of where the agent has been and which moves it has seen: exploration over states.
+
+The agent's GP is optimistic per (state, action) through a smooth kernel; behind a
+wall that optimism leaks across the wall and drains one action at a time
+(docs/exploration.md). :class:`StateMap` measures exploration over *states*, along
+*observed moves* (SPEC §7), in the manner of parti-game (Moore & Atkeson, Machine
+Learning 21, 1995) and R-max's known-state MDP:
+
+* **Cells** (:class:`~geoq.agents.map_cells.CellTree`): a grid over the observation
+  box whose side per dimension is ``side_scale`` x the 0.9-quantile of the observed
+  ``|s' - s|`` (the data's own step), each grid cell a k-d tree.
+* **Blocked moves and splits.** A transition is *blocked* when it moved less than
+  ``blocked_fraction`` of its candidate's typical move (the 0.9-quantile of that
+  candidate's moves). A leaf is split where one candidate's outcomes in it disagree
+  (blocked and moved), along the dimension and threshold that best separate the
+  blocked starts from the moved ones, if that beats not splitting and leaves both
+  halves at least ``min_split_fraction`` of the grid side wide.
+* **Moves.** A tried (leaf, candidate) is worth the mean backup
+  ``r + gamma (1 - done) V(leaf(s'))`` of its transitions that left the leaf (or were
+  blocked, or ended the episode). An untried one is predicted from the same
+  candidate's moved transitions in the ``3^d`` grid cells around (else anywhere):
+  from the leaf's centre, the mean move repeated until it leaves the leaf (``n``
+  steps, worth ``r (1 - gamma^n) / (1 - gamma) + gamma^n (1 - done) V``: a macro
+  move); predicted blocked (a self-loop) where a transition from the same leaf was
+  blocked with a candidate at cosine >= ``blocked_cos`` (a wall seen with one move is
+  a wall for the moves like it).
+* **Two plans** by value iteration over the leaves, only when the map changed. The
+  *explore* plan values a leaf nothing has left from (the frontier) at
+  ``max(0, r_max) / (1 - gamma)`` until a termination is seen, then at the best
+  terminal reward (as good as the goal), with tried and predicted moves. The
+  *exploit* plan values the frontier at the lower bound and uses tried moves only
+  (predicted ones in a leaf with none tried): an unexplored state is not better than
+  a found goal.
+
+Every scale comes from the observation box and the transitions; the design's
+constants (:class:`MapSettings`) were chosen on TwoRooms and checked on five layouts
+(docs/exploration.md, prototype 4). The map assumes the moves are the action's own
+(a kinematic task: :func:`moves_follow_actions`); the agent builds it only there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from geoq._typing import FloatArray, IntArray
+from geoq.agents.map_cells import CellTree
+
+__all__ = ["MapSettings", "StateMap", "moves_follow_actions"]
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """The map's constants (docs/exploration.md, prototype 4, where each was measured)."""
+
+    side_scale: float = 3.0
+    """Grid side, in 0.9-quantiles of the observed ``|s' - s|`` per dimension."""
+    quantile: float = 0.9
+    """The quantile of the moves that reads "a typical move" (cell side, blocked test)."""
+    blocked_fraction: float = 0.25
+    """A move shorter than this x its candidate's typical move is blocked."""
+    min_split_fraction: float = 1 / 16
+    """No leaf narrower than this x the grid side."""
+    blocked_cos: float = 0.7
+    """An untried move is predicted blocked where one at this cosine or more was."""
+    max_macro: int = 50
+    """Most steps a predicted move is repeated to leave its leaf."""
+    route_margin: float = 0.05
+    """The exploit plan knows a route from a leaf valued above the lower bound by this
+    fraction of the value range."""
+    tol: float = 1e-3
+    """Value iteration stops when no value moves more than this."""
+    max_sweeps: int = 2000
+
+
+def moves_follow_actions(
+    states: FloatArray, actions: FloatArray, next_states: FloatArray, threshold: float = 0.5
+) -> bool:
+    """Whether every observation dimension's move ``s' - s`` is explained by the action.
+
+    The least-squares fit of ``s' - s`` on ``[a, 1]`` explains at least ``threshold`` of
+    each dimension's variance (``R^2``; a dimension that never moved is ignored). True
+    for a point moved by its action (TwoRooms and its layouts: ``R^2`` 0.85-1.00 over
+    the first 64-256 steps), False where the state integrates a velocity (swing-up,
+    MountainCarContinuous, Pendulum-v1: the least dimension's ``R^2`` <= 0.08).
+    """
+    D = np.asarray(next_states, dtype=np.float64) - np.asarray(states, dtype=np.float64)
+    X = np.hstack([np.asarray(actions, dtype=np.float64), np.ones((D.shape[0], 1))])
+    coef, *_ = np.linalg.lstsq(X, D, rcond=None)
+    total = np.sum((D - D.mean(axis=0)) ** 2, axis=0)
+    residual = np.sum((D - X @ coef) ** 2, axis=0)
+    moved = total > 0
+    return bool(moved.any() and np.all(residual[moved] <= (1 - threshold) * total[moved]))
+
+
+class StateMap:
+    """Explorer and greedy policy on a variable-resolution map of the observed moves.
+
+    Parameters
+    ----------
+    low, high : the observation box ``[d]`` (finite).
+    candidates : the agent's candidate actions ``[K, d_a]``; a transition counts for one.
+    gamma : the discount factor.
+    states, choices, rewards, next_states, terminated : the transitions so far
+        (``[N, d]``, ``[N]`` candidate indices, ``[N]``, ``[N, d]``, ``[N]``), ``N >= 1``:
+        they fix the grid's side.
+    """
+
+    def __init__(
+        self, low: FloatArray, high: FloatArray, candidates: FloatArray, gamma: float,
+        states: FloatArray, choices: IntArray, rewards: FloatArray, next_states: FloatArray,
+        terminated: Any, settings: MapSettings | None = None,
+    ) -> None:  # fmt: skip
+        self.settings = settings or MapSettings()
+        self.candidates = np.asarray(candidates, dtype=np.float64)
+        self.gamma = float(gamma)
+        self.S = np.asarray(states, dtype=np.float64).copy()
+        self.S2 = np.asarray(next_states, dtype=np.float64).copy()
+        self.k = np.asarray(choices, dtype=np.int64).copy()
+        self.r = np.asarray(rewards, dtype=np.float64).copy()
+        self.done = np.asarray(terminated, dtype=bool).copy()
+        moves = np.abs(self.S2 - self.S)
+        side = self.settings.side_scale * np.quantile(moves, self.settings.quantile, axis=0)
+        self.cells = CellTree(low, high, side)
+        self.leaf_s = self.cells.locate(self.S, create=True)
+        self.leaf_s2 = self.cells.locate(self.S2, create=True)
+        self._refine(set(np.unique(self.leaf_s).tolist()))
+        self.V_explore = np.zeros(self.cells.n_leaves)
+        self.V_exploit = np.zeros(self.cells.n_leaves)
+        self.Q_explore = np.zeros((self.cells.n_leaves, self.n_candidates))
+        self.Q_exploit = np.zeros((self.cells.n_leaves, self.n_candidates))
+        self.changed = True
+        self.plans = 0
+        self.sweeps = 0
+
+    @property
+    def n_candidates(self) -> int:
+        """``K``, the number of candidate actions."""
+        return int(self.candidates.shape[0])
+
+    @property
+    def n_transitions(self) -> int:
+        """Transitions the map holds."""
+        return int(self.k.size)
+
+    # ----------------------------------------------------------------- the data
+    def _distances(self) -> FloatArray:
+        """Every transition's move ``[N]`` in grid sides."""
+        return np.linalg.norm((self.S2 - self.S) / self.cells.side, axis=1)
+
+    def _blocked(self) -> np.ndarray:
+        """Blocked transitions ``[N]`` (bool): less than ``blocked_fraction`` of their
+        candidate's typical move (a median is dragged to 0 by repeated blocked tries)."""
+        dist, q = self._distances(), self.settings.quantile
+        typical = np.zeros(self.n_candidates)
+        for k in np.unique(self.k):
+            typical[k] = np.quantile(dist[self.k == k], q)
+        return dist < self.settings.blocked_fraction * typical[self.k]
+
+    def observe(self, s: FloatArray, k: int, r: float, s2: FloatArray, terminated: bool) -> None:
+        """Add one transition ``s -(candidate k)-> s2``; split its leaf where it disagrees.
+
+        The map is marked for re-planning when it changed: a new leaf, a new end leaf for
+        its (leaf, candidate), a split, a termination or a blocked move."""
+        c = int(self.cells.locate(s[None], create=True)[0])
+        end = int(self.cells.locate(s2[None], create=True)[0])
+        same = (self.leaf_s == c) & (self.k == k)
+        new_end = not np.any(self.leaf_s2[same] == end)
+        self.S, self.S2 = np.vstack([self.S, s]), np.vstack([self.S2, s2])
+        self.k, self.r = np.append(self.k, k), np.append(self.r, r)
+        self.done = np.append(self.done, terminated)
+        self.leaf_s, self.leaf_s2 = np.append(self.leaf_s, c), np.append(self.leaf_s2, end)
+        split = self._refine({c})
+        dist = self._distances()[self.k == k]
+        blocked = dist[-1] < self.settings.blocked_fraction * np.quantile(
+            dist, self.settings.quantile
+        )
+        self.changed |= bool(terminated or split or new_end or blocked)
+
+    def _refine(self, leaves: set[int]) -> bool:
+        """Split ``leaves`` (and their halves) while a candidate's outcomes disagree."""
+        blocked, todo, any_split = self._blocked(), list(leaves), False
+        while todo:
+            leaf = todo.pop()
+            cut = self._best_split(leaf, blocked)
+            if cut is None:
+                continue
+            new = self.cells.split(leaf, *cut)
+            any_split = True
+            self.leaf_s = self.cells.locate(self.S)
+            self.leaf_s2 = self.cells.locate(self.S2)
+            todo += [leaf, new]
+        return any_split
+
+    def _best_split(self, leaf: int, blocked: np.ndarray) -> tuple[int, float] | None:
+        """The (dim, threshold) best separating one candidate's blocked starts from its
+        moved ones in ``leaf``: fewest misclassified, then the widest gap; None if no
+        cut beats not splitting."""
+        in_leaf = self.leaf_s == leaf
+        low, high = self.cells.leaf_low[leaf], self.cells.leaf_high[leaf]
+        min_width = self.settings.min_split_fraction * self.cells.side
+        best: tuple[float, float, int, float] | None = None  # (error rate, -gap, dim, cut)
+        for k in np.unique(self.k[in_leaf]):
+            sel = in_leaf & (self.k == k)
+            b = blocked[sel]
+            if b.all() or not b.any():
+                continue
+            X = self.S[sel]
+            for dim in range(self.cells.dim):
+                order = np.argsort(X[:, dim], kind="stable")
+                x, bb = X[order, dim], b[order]
+                below_b = np.concatenate([[0], np.cumsum(bb)])
+                below_m = np.concatenate([[0], np.cumsum(~bb)])
+                nb, nm = below_b[-1], below_m[-1]
+                # errors of "blocked above the cut" and "blocked below it", cuts between points
+                err = np.minimum(below_m + nb - below_b, below_b + nm - below_m)[1:-1]
+                cut = 0.5 * (x[:-1] + x[1:])
+                ok = (x[1:] > x[:-1]) & (cut - low[dim] >= min_width[dim])
+                ok &= high[dim] - cut >= min_width[dim]
+                if not ok.any():
+                    continue
+                e = np.where(ok, err, np.inf)
+                i = int(np.argmin(e))
+                if e[i] >= min(nb, nm):
+                    continue
+                option = (float(e[i]) / sel.sum(), -float(x[i + 1] - x[i]), dim, float(cut[i]))
+                if best is None or option[:2] < best[:2]:
+                    best = option
+        return None if best is None else (best[2], best[3])
+
+    # ----------------------------------------------------------------- planning
+    def bounds(self) -> tuple[float, float]:
+        """``(lo, hi)``: the least and the most a discounted return of the rewards seen can be."""
+        g, r_min, r_max = self.gamma, float(self.r.min()), float(self.r.max())
+        return min(r_min, r_min / (1 - g)), max(0.0, r_max) / (1 - g)
+
+    def _frontier(self) -> float:
+        """The explore plan's value of a leaf nothing has left from."""
+        return float(self.r[self.done].max()) if self.done.any() else self.bounds()[1]
+
+    def _predictions(self, blocked: np.ndarray) -> tuple[IntArray, FloatArray, FloatArray,
+                                                         FloatArray]:  # fmt: skip
+        """Predicted end leaf (-2: nothing to predict from), reward, termination and step
+        count ``[L, K]`` of every (leaf, candidate) (a macro move from the leaf's centre)."""
+        cells, K, d = self.cells, self.n_candidates, self.cells.dim
+        G, shape = cells.root.size, [*cells.n_grid.tolist(), K]
+        moved = ~blocked
+        idx = cells.grid_index(self.S[moved]) * K + self.k[moved]
+        weights = [*(self.S2[moved] - self.S[moved]).T, self.r[moved], self.done[moved]]
+        count = _around(np.bincount(idx, minlength=G * K).reshape(shape)).reshape(G, K)
+        sums = [_around(np.bincount(idx, weights=w, minlength=G * K).reshape(shape))
+                .reshape(G, K) for w in weights]  # fmt: skip
+        every_count = np.bincount(self.k[moved], minlength=K)
+        every_sum = [np.bincount(self.k[moved], weights=w, minlength=K) for w in weights]
+        roots = cells.leaf_root
+        local = count[roots] > 0  # [L, K]
+        denom = np.where(local, count[roots], np.maximum(every_count, 1)[None, :])
+        mean = [np.where(local, s[roots], e[None, :]) / denom
+                for s, e in zip(sums, every_sum, strict=True)]  # fmt: skip
+        move = np.stack(mean[:d], axis=-1)  # [L, K, d]
+        half = 0.5 * (cells.leaf_high - cells.leaf_low)  # [L, d]
+        with np.errstate(divide="ignore"):
+            ratio = (half[:, None, :] / np.abs(move)).min(axis=2)
+        n_steps = np.clip(np.floor(ratio) + 1, 1, self.settings.max_macro)
+        centre = 0.5 * (cells.leaf_low + cells.leaf_high)
+        ends = np.clip(centre[:, None, :] + n_steps[:, :, None] * move, cells.low, cells.high)
+        target = cells.locate(ends.reshape(-1, d)).reshape(-1, K)
+        target = np.where(local | (every_count > 0)[None, :], target, -2)
+        if blocked.any():  # a wall seen with one move is a wall for the moves like it
+            unit = self.candidates / np.maximum(
+                np.linalg.norm(self.candidates, axis=1, keepdims=True), 1e-12
+            )
+            alike = (unit @ unit.T) >= self.settings.blocked_cos  # [K, K]
+            seen = np.zeros((cells.n_leaves, K), dtype=np.int64)
+            seen[self.leaf_s[blocked], self.k[blocked]] = 1
+            wall = (seen @ alike.astype(np.int64)) > 0
+            target = np.where(wall, np.arange(cells.n_leaves)[:, None], target)
+        return target, mean[d], mean[d + 1], n_steps
+
+    def plan(self) -> None:
+        """Value iteration for both plans, if the map changed since the last one."""
+        if not self.changed:
+            return
+        L, K = self.cells.n_leaves, self.n_candidates
+        blocked = self._blocked()
+        target, r_hat, d_hat, n_steps = self._predictions(blocked)
+        visited = np.bincount(self.leaf_s, minlength=L) > 0
+        # a move that stayed inside its leaf is part of a macro move, not a self-loop
+        use = ~((self.leaf_s2 == self.leaf_s) & ~blocked & ~self.done)
+        idx = self.leaf_s[use] * K + self.k[use]
+        tried = np.bincount(idx, minlength=L * K).reshape(L, K)
+        lo, _ = self.bounds()
+        predicted = (tried == 0) & (target >= -1) & visited[:, None]
+        model = _Model(self, use, idx, tried, target, r_hat, d_hat, n_steps)
+        # exploit: a predicted move only towards a leaf some tried move from here reached
+        # (no route through a wall nothing crossed), or in a leaf with no tried move
+        reached = np.isin(np.arange(L)[:, None] * L + target,
+                          np.unique(self.leaf_s[use] * L + self.leaf_s2[use]))  # fmt: skip
+        explore_moves = predicted
+        exploit_moves = predicted & (reached | (tried.sum(1) == 0)[:, None])
+        frontier = self._frontier()
+        self.V_explore = model.solve(self._grown(self.V_explore), explore_moves, visited, frontier)
+        self.V_exploit = model.solve(self._grown(self.V_exploit), exploit_moves, visited, lo)
+        self.Q_explore = model.q(self.V_explore, explore_moves, frontier)
+        self.Q_exploit = model.q(self.V_exploit, exploit_moves, lo)
+        self.sweeps += model.sweeps
+        self.plans += 1
+        self.changed = False
+
+    def _grown(self, V: FloatArray) -> FloatArray:
+        """``V`` warm start for the current leaves (a new leaf starts at 0)."""
+        return np.concatenate([V, np.zeros(self.cells.n_leaves - V.size)])
+
+    # ----------------------------------------------------------------- acting
+    def knows_route(self, leaves: IntArray) -> np.ndarray:
+        """Whether the exploit plan values each leaf ``[n]`` above the lower bound by
+        ``route_margin`` of the range (a route to a termination is known); False at -1."""
+        lo, hi = self.bounds()
+        ok = leaves >= 0
+        v = self.V_exploit[np.maximum(leaves, 0)]
+        return ok & self.done.any() & (v > lo + self.settings.route_margin * (hi - lo))
+
+    def explore(self, s: FloatArray, rng: np.random.Generator) -> int:
+        """The candidate to take in training at ``s [d]``: the explore plan's best (ties
+        drawn from ``rng``; a point in no leaf: a random candidate). Plans first if the
+        map changed."""
+        self.plan()
+        c = int(self.cells.locate(np.asarray(s, dtype=np.float64)[None])[0])
+        if c < 0:
+            return int(rng.integers(self.n_candidates))
+        q = self.Q_explore[c]
+        best = np.flatnonzero(q >= q.max() - 1e-9)
+        return int(best[0] if best.size == 1 else rng.choice(best))
+
+    def greedy(self, states: FloatArray) -> tuple[np.ndarray, np.ndarray]:
+        """The exploit plan's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
+        value range) at each state ``[n, d]`` and whether the map knows a route from there
+        ``[n]`` (no randomness; changes nothing)."""
+        X = np.asarray(states, dtype=np.float64)
+        leaves = self.cells.locate(X)
+        q = self.Q_exploit[np.maximum(leaves, 0)]
+        lo, hi = self.bounds()
+        best = q >= q.max(axis=1, keepdims=True) - 1e-9 * (hi - lo)
+        return best, self.knows_route(leaves)
+
+    # ----------------------------------------------------------------- persistence
+    _ARRAYS = ("S", "S2", "k", "r", "done", "leaf_s", "leaf_s2", "V_explore", "V_exploit",
+               "Q_explore", "Q_exploit", "candidates")  # fmt: skip
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The map as named arrays (:meth:`from_arrays` inverts it)."""
+        out = {f"cells/{k}": v for k, v in self.cells.to_arrays().items()}
+        out.update({name: getattr(self, name) for name in self._ARRAYS})
+        out["counters"] = np.array([self.gamma, float(self.changed), self.plans, self.sweeps])
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, Any], settings: MapSettings | None = None) -> StateMap:
+        """A map from :meth:`to_arrays`' output; ``ValueError`` if it is inconsistent."""
+        m = cls.__new__(cls)
+        m.settings = settings or MapSettings()
+        m.cells = CellTree.from_arrays(
+            {k[6:]: v for k, v in arrays.items() if k.startswith("cells/")}
+        )
+        for name in cls._ARRAYS:
+            setattr(m, name, np.asarray(arrays[name]))
+        m.k, m.leaf_s, m.leaf_s2 = (np.asarray(getattr(m, n), dtype=np.int64)
+                                    for n in ("k", "leaf_s", "leaf_s2"))  # fmt: skip
+        m.done = np.asarray(m.done, dtype=bool)
+        gamma, changed, plans, sweeps = np.asarray(arrays["counters"], dtype=np.float64)
+        m.gamma, m.changed, m.plans, m.sweeps = float(gamma), bool(changed), int(plans), int(sweeps)
+        n, L, K = m.k.size, m.cells.n_leaves, m.n_candidates
+        if (
+            m.S.shape != (n, m.cells.dim) or m.S2.shape != m.S.shape or m.r.shape != (n,)
+            or m.done.shape != (n,) or m.leaf_s.shape != (n,) or m.leaf_s2.shape != (n,)
+            or m.V_explore.shape != (L,) or m.V_exploit.shape != (L,)
+            or m.Q_explore.shape != (L, K) or m.Q_exploit.shape != (L, K)
+            or np.any(m.k < 0) or np.any(m.k >= K) or n == 0
+        ):  # fmt: skip
+            raise ValueError("inconsistent exploration map")
+        return m
+
+
+class _Model:
+    """The map's MDP over leaves for one planning round: Bellman backups of both plans."""
+
+    def __init__(self, m: StateMap, use: np.ndarray, idx: IntArray, tried: IntArray,
+                 target: IntArray, r_hat: FloatArray, d_hat: FloatArray,
+                 n_steps: FloatArray) -> None:  # fmt: skip
+        self.m, self.use, self.idx, self.tried = m, use, idx, tried
+        self.target, self.r_hat, self.d_hat = target, r_hat, d_hat
+        g = m.gamma
+        self.discount = g**n_steps  # [L, K]
+        self.macro_reward = r_hat * (1 - self.discount) / (1 - g)
+        # a tried move's exit is its last step: n - 1 steps inside the leaf come first
+        n_used = n_steps[m.leaf_s[use], m.k[use]] - 1  # [N_used]
+        self.inside_discount = g**n_used
+        self.inside_reward = r_hat[m.leaf_s[use], m.k[use]] * (1 - self.inside_discount) / (1 - g)
+        self.sweeps = 0
+
+    def q(self, V: FloatArray, predicted: np.ndarray, unvisited: float) -> FloatArray:
+        """``Q [L, K]``: mean backups of tried moves, macro backups of predicted ones, -inf
+        for neither. Both count the steps a move takes to leave its leaf (from the
+        centre, at the candidate's mean move), so a fast move beats a slow one to the
+        same leaf."""
+        m, L, K, u = self.m, self.tried.shape[0], self.tried.shape[1], self.use
+        exit_backup = m.r[u] + m.gamma * (~m.done[u]) * V[m.leaf_s2[u]]
+        backup = self.inside_reward + self.inside_discount * exit_backup
+        total = np.bincount(self.idx, weights=backup, minlength=L * K).reshape(L, K)
+        Q = np.where(self.tried > 0, total / np.maximum(self.tried, 1), -np.inf)
+        v_end = np.where(self.target >= 0, V[np.maximum(self.target, 0)], unvisited)
+        pred = self.macro_reward + self.discount * (1 - self.d_hat) * v_end
+        return np.where(predicted, pred, Q)
+
+    def solve(self, V: FloatArray, predicted: np.ndarray, visited: np.ndarray,
+              unvisited: float) -> FloatArray:  # fmt: skip
+        """Value iteration from ``V`` (warm start) until no value moves more than ``tol``;
+        a leaf nothing has left from, or with no move, is worth ``unvisited``."""
+        V = np.where(visited, V, unvisited)
+        for _ in range(self.m.settings.max_sweeps):
+            best = self.q(V, predicted, unvisited).max(axis=1)
+            new = np.where(visited & np.isfinite(best), best, unvisited)
+            self.sweeps += 1
+            if np.max(np.abs(new - V)) < self.m.settings.tol:
+                return new
+            V = new
+        return V
+
+
+def _around(a: np.ndarray) -> np.ndarray:
+    """Sum over the ``3^d`` grid cells around each cell (``a``'s last axis: candidates)."""
+    out = a
+    for ax in range(a.ndim - 1):
+        pad = [(1, 1) if i == ax else (0, 0) for i in range(a.ndim)]
+        p, n = np.pad(out, pad), out.shape[ax]
+        out = sum(p[tuple(slice(s, s + n) if i == ax else slice(None) for i in range(a.ndim))]
+                  for s in range(3))  # fmt: skip
+    return out

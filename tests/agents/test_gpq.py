@@ -29,6 +29,7 @@ def _agent(seed: int = 0, **kw: object) -> GPQAgent:
 
 def test_learns_the_optimal_policy_of_a_point_to_goal_task() -> None:
     agent = _agent().learn(400)
+    assert agent.explorer.map is not None  # a point pushed by its action: the map acts
     for start in (-1.0, -0.6, -0.2, 0.2):
         optimal = steps_to_goal(lambda obs: np.array([1.0]), start)
         learned = steps_to_goal(lambda obs: agent.predict(obs)[0], start)

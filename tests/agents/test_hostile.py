@@ -67,21 +67,32 @@ WORDS = {"reward": "reward", "observation": "observation", "terminated": "termin
 
 class Misbehaving(PointToGoal):
     """:class:`PointToGoal` whose ``bad_step``-th step returns ``value`` in place of ``what``;
-    just before, it records the agent's snapshot (``watch``)."""
+    just before, it records the agent's snapshot (:meth:`watch`), its generator as it was
+    before the step's action was chosen (an exploration map draws among ties)."""
 
     def __init__(self, bad_step: int, what: str, value: Any) -> None:
         super().__init__()
         self.bad_step, self.what, self.value, self.n = bad_step, what, value, 0
-        self.watch: GPQAgent | None = None
+        self.agent: GPQAgent | None = None
         self.before: dict[str, Any] | None = None
+        self.rng_at_choice: dict[str, Any] | None = None
+
+    def watch(self, agent: GPQAgent) -> None:
+        self.agent, explore = agent, agent._explore
+
+        def watched(s: np.ndarray, q: Any) -> np.ndarray:
+            self.rng_at_choice = copy.deepcopy(agent.rng.bit_generator.state)
+            return explore(s, q)
+
+        agent._explore = watched  # type: ignore[method-assign]
 
     def step(self, action: np.ndarray) -> Any:
         self.n += 1
         out = list(super().step(action))
         if self.n != self.bad_step:
             return tuple(out)
-        if self.watch is not None:
-            self.before = _snapshot(self.watch)
+        if self.agent is not None:
+            self.before = {**_snapshot(self.agent), "rng": self.rng_at_choice}
         if self.what == "tuple":
             return tuple(out[:4]) if self.value == 4 else (*out, None)
         key = ("observation", "reward", "terminated", "truncated", "info").index(self.what)
@@ -98,7 +109,7 @@ def test_a_refused_step_leaves_the_agent_exactly_as_it_was(
     value = data.draw(st.sampled_from(BAD_OUTPUTS[what]), label="value")
     env = Misbehaving(bad_step, what, value)
     agent = GPQAgent(env, kernel=kernel, max_bv=20, seed=0, gamma=0.9, train_every=10)  # type: ignore[arg-type]
-    env.watch = agent
+    env.watch(agent)
     before_learn = _snapshot(agent)
     with pytest.raises(ValueError, match=WORDS[what]) as info:
         agent.learn(100)

@@ -4,7 +4,7 @@ maximum exact-GP evidence (:func:`geoq.gp.evidence.fit_squared_exponential`)."""
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -12,7 +12,10 @@ from geoq._typing import FloatArray
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.gp.numerics import NumericalWarning
 
-__all__ = ["EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "fit_lengthscales"]
+if TYPE_CHECKING:
+    from geoq.agents.gpq import GPQAgent
+
+__all__ = ["EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "fit_lengthscales", "refit_lengthscales"]
 
 #: Points of each fit (O(n^3) per evaluation) and its random restarts beyond the warm
 #: start (the length-scales in use).
@@ -42,3 +45,22 @@ def fit_lengthscales(
         "at_bound": list(fit.at_bound), "warnings": [str(w.message) for w in caught],
     }  # fmt: skip
     return ls, record
+
+
+def refit_lengthscales(agent: GPQAgent) -> None:
+    """``hyperparameters="evidence"``: ``agent``'s length-scales fitted to its window's
+    inputs and standardised targets (:func:`fit_lengthscales`, warm-started from those in
+    use); its GP is rebuilt with them, the fit recorded in its log."""
+    c, st, buffer = agent.config, agent.state, agent.buffer
+    stored = buffer.transitions(last=c.window)
+    z = (buffer.targets(last=c.window) - st.y_mean) / st.y_scale
+    n, d = len(z), agent.scaling.dim
+    st.evidence_due = 2 * n
+    if n < 2 or np.ptp(z) == 0.0:
+        return  # equal targets say nothing about length-scales
+    start = np.broadcast_to(np.asarray(agent._lengthscale(), dtype=np.float64), (d,))
+    X = agent.inputs(stored.states, stored.actions)
+    ls, record = fit_lengthscales(X, z, start, np.random.default_rng(agent.rng.integers(2**32)))
+    agent.log.evidence_fits.append(record)
+    st.fitted_lengthscale = ls
+    agent._restream()

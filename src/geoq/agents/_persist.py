@@ -2,7 +2,8 @@
 
 Arrays: ``gp/*`` (the sparse GP), ``buffer/*`` (the transitions and their
 targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``,
-``covariances/*`` (the fitted-Q phases' column order, optional); ``meta``
+``covariances/*`` (the fitted-Q phases' column order, optional), ``explorer/*``
+(the exploration map, :mod:`geoq.agents.map_explorer`; optional); ``meta``
 is JSON (config, scaling, env id, seed, generator state, standardisation,
 counters). Optional meta keys added after version 1 default to a fresh agent's
 values, so older files load.
@@ -53,6 +54,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
     arrays["obs_dim"] = np.int64(agent.obs_dim)
     slots = agent.phase.covariances.slot_arrays()
     arrays.update({f"covariances/{k}": v for k, v in slots.items()})
+    arrays.update({f"explorer/{k}": v for k, v in agent.explorer.to_arrays().items()})
     save_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION, arrays)
 
 
@@ -120,6 +122,10 @@ def load_agent(
             raise ArchiveError(
                 f"{path}: inconsistent GPQAgent archive ({exc}); save it again"
             ) from exc
+    try:  # files from before the map: none, as they explored
+        agent.explorer.restore({k[9:]: v for k, v in a.items() if k.startswith("explorer/")})
+    except (KeyError, ValueError, TypeError) as exc:
+        raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent.env = None
     if env is None and agent.env_id and agent.env_id in gymnasium.registry:
         env = agent.env_id

@@ -15,6 +15,7 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
+from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
 from geoq.agents.state import as_range, check_value_bounds, value_bounds
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
@@ -189,6 +190,14 @@ class GPQConfig:
     ``midrange``: mean ``(lo + hi) / 2``, std ``(hi - lo) / 2``; ``optimistic``:
     mean ``hi``, std ``(hi - lo) / 2`` (optimism in the face of uncertainty);
     ``empirical``: mean and std of the current targets."""
+    explore_map: ExploreMap = "auto"
+    """Exploration over states on a map of the observed moves
+    (:mod:`geoq.agents.map_explorer`, :mod:`geoq.agents.state_map`): ``auto`` builds one
+    after ``2 n_candidates`` steps where the moves are the actions' own (a point pushed
+    around: TwoRooms and its layouts), never where the state integrates a velocity (the
+    pendulums, the mountain car: their agents are unchanged); ``on``: always; ``off``:
+    never. With a map, training actions follow its explore plan and greedy actions its
+    exploit plan where it knows a route to a termination (the GP's elsewhere)."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -200,6 +209,7 @@ class GPQConfig:
         for name, allowed in (
             ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
             ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
+            ("explore_map", EXPLORE_MAP_MODES),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")

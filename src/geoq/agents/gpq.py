@@ -33,7 +33,10 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    phase by ``prior`` (:class:`GPQConfig`): by default the prior mean, the value of
    what was never tried, is the upper value bound (optimism), the prior std half
    the bounds' range.
-6. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`,
+6. **Exploration over states** where the moves are the actions' own (``explore_map``):
+   a map of the observed moves (:mod:`geoq.agents.map_explorer`) picks the training
+   actions, and the greedy ones where it knows a route to a termination.
+7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`,
    ``[r_min, r_max] / (1 - gamma)`` of the rewards declared or observed so far,
    widened by the rewards of terminating steps (received once, they count by
    themselves): every discounted return lies there, and without it regression +
@@ -56,12 +59,13 @@ import numpy as np
 from geoq._threads import single_blas_thread
 from geoq._typing import FloatArray
 from geoq.agents import _env
-from geoq.agents._evidence import fit_lengthscales
+from geoq.agents._evidence import refit_lengthscales
 from geoq.agents._persist import load_agent, save_agent
 from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
 from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
+from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.replay import replay_strategy
 from geoq.agents.state import LearningState, TrainingLog, as_range, check_target
 from geoq.gp import SparseOnlineGP
@@ -106,6 +110,7 @@ class GPQAgent:
     state : what the agent has learned besides (:class:`LearningState`).
     log : what it recorded while learning (:class:`TrainingLog`).
     phase : the fitted-Q phase (:class:`FittedQPhase`) with its replay strategy.
+    explorer : the exploration map, once decided on (:class:`MapExplorer`).
     """
 
     def __init__(
@@ -161,6 +166,8 @@ class GPQAgent:
         replay = replay_strategy(config.replay, config.gamma, config.replay_budget,
                                  config.replay_eps)  # fmt: skip
         self.phase = FittedQPhase(config, replay)
+        self.explorer = MapExplorer(config.explore_map, candidates, self.action_low,
+                                    self.action_high, config.gamma)  # fmt: skip
 
     @property
     def max_bv(self) -> int:
@@ -232,6 +239,7 @@ class GPQAgent:
             return (a[0] if single else a), None
         mean, std = self.q_candidates(S)
         actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
+        actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
         return (actions[0] if single else actions), None
 
     def _act(self, mean: FloatArray, std: FloatArray, mode: Exploration) -> FloatArray:
@@ -242,8 +250,12 @@ class GPQAgent:
             high=self.action_high, rng=self.rng,
         )  # fmt: skip
 
-    def _explore(self, q: QValues) -> FloatArray:
-        """The action ``[1, d_a]`` to take: uniformly random during the warm-up."""
+    def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
+        """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one,
+        else uniformly random during the warm-up, else by ``exploration``."""
+        a = self.explorer.action(s, self.rng)
+        if a is not None:
+            return a
         if q is None:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
         return self._act(*q, self.config.exploration)
@@ -301,6 +313,7 @@ class GPQAgent:
         last = self.log.episodes[-1].timesteps if self.log.episodes else None
         if len(self.buffer) and not self.state.scaling_pending and last != self.num_timesteps:
             self.train()  # the steps of an unfinished episode
+        self.explorer.plan()
         return self
 
     def _collect_episode(
@@ -314,12 +327,10 @@ class GPQAgent:
         """One episode, or its first ``max_steps`` steps, learning online and training when
         a phase is due; returns the steps taken and whether the callback asked to stop."""
         s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
-        if isinstance(self.gp.kernel, GraphKernel):
-            self.gp.kernel.start_rollout()
         q = self._q_or_none(s)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
-            step, q = self._observe(env, s, q)
+            step, q = self._observe(env, s, q, first=steps == 0)
             steps, ep_return = steps + 1, ep_return + step.reward
             if bar is not None:
                 bar.update(1)
@@ -336,22 +347,25 @@ class GPQAgent:
         return steps, False
 
     def _observe(
-        self, env: gymnasium.Env, s: FloatArray, q: QValues
+        self, env: gymnasium.Env, s: FloatArray, q: QValues, first: bool = False
     ) -> tuple[_env.EnvStep, QValues]:
-        """One step at ``s`` (``Q`` there: ``q``): act, check what the env returned, store the
-        transition with its bootstrapped target and stream it into the GP (JC12 §6's online
-        update); returns the step and ``Q`` at its next state (the next step's choice).
-        A refused step (:func:`env_step`, a reward whose values pass ``MAX_VALUE``)
-        raises before anything changes; the generator is put back."""
+        """One step at ``s`` (``Q`` there: ``q``; ``first`` of its episode: a graph kernel's
+        roll-out starts): act, check what the env returned, store the transition with its
+        bootstrapped target and stream it into the GP (JC12 §6's online update); returns
+        the step and ``Q`` at its next state (the next step's choice). A refused step
+        (:func:`env_step`, a reward whose values pass ``MAX_VALUE``) raises before anything
+        changes; the generator is put back."""
         st, g, rng_state = self.state, self.config.gamma, self.rng.bit_generator.state
         try:
-            step = _env.env_step(env, self._explore(q), self.obs_dim, self._obs_scale())
+            step = _env.env_step(env, self._explore(s, q), self.obs_dim, self._obs_scale())
             bounds = st.value_bounds_with(step.reward, step.terminated, g)
             q = self._q_or_none(step.next_state)
             q_next = 0.0 if q is None or step.terminated else float(np.max(q[0]))
             y = float(np.clip(step.reward + (0.0 if step.terminated else g * q_next), *bounds))
             if not st.scaling_pending:  # a GP update refused changes nothing
                 z = check_target((y - st.y_mean) / st.y_scale, step.reward)
+                if first and isinstance(self.gp.kernel, GraphKernel):
+                    self.gp.kernel.start_rollout()
                 self.gp.update(self.inputs(s, step.action)[0], z)
         except BaseException:
             self.rng.bit_generator.state = rng_state
@@ -359,6 +373,7 @@ class GPQAgent:
         st.observe_reward(step.reward, step.terminated)
         self.buffer.add(s[0], step.action[0], step.reward, step.next_state[0], step.terminated,
                         target=y)  # fmt: skip
+        self.explorer.observe(self.buffer, *_env.observation_box(env))
         if st.scaling_pending and len(self.buffer) >= self.config.warmup_steps:
             self._finish_warmup()
             q = self.q_candidates(step.next_state)
@@ -418,29 +433,11 @@ class GPQAgent:
             if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
                 self._rescale_from_data()
         if self.config.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
-            self._fit_lengthscales()
+            refit_lengthscales(self)
         try:
             return self._train()
         finally:
             self.log.train_seconds += time.perf_counter() - t0
-
-    def _fit_lengthscales(self) -> None:
-        """``hyperparameters="evidence"``: length-scales fitted to the window's inputs and
-        standardised targets (:func:`~geoq.agents._evidence.fit_lengthscales`, warm-started
-        from those in use); the GP is rebuilt with them, the fit recorded in the log."""
-        c, st = self.config, self.state
-        stored = self.buffer.transitions(last=c.window)
-        z = (self.buffer.targets(last=c.window) - st.y_mean) / st.y_scale
-        n, d = len(z), self.scaling.dim
-        st.evidence_due = 2 * n
-        if n < 2 or np.ptp(z) == 0.0:
-            return  # equal targets say nothing about length-scales
-        start = np.broadcast_to(np.asarray(self._lengthscale(), dtype=np.float64), (d,))
-        X = self.inputs(stored.states, stored.actions)
-        ls, record = fit_lengthscales(X, z, start, np.random.default_rng(self.rng.integers(2**32)))
-        self.log.evidence_fits.append(record)
-        st.fitted_lengthscale = ls
-        self._restream()
 
     @single_blas_thread
     def _train(self) -> int:

@@ -68,7 +68,8 @@ class CellTree:
     def grid_index(self, X: FloatArray) -> IntArray:
         """Flat grid-cell index ``[n]`` of points ``X [n, d]`` (outside points: the nearest)."""
         g = np.floor((X - self.low) / self.side).astype(np.int64)
-        return np.ravel_multi_index(np.clip(g, 0, self.n_grid - 1).T, self.n_grid)
+        flat = np.ravel_multi_index(np.clip(g, 0, self.n_grid - 1).T, tuple(self.n_grid))
+        return np.asarray(flat, dtype=np.int64)
 
     def _add_node(self, leaf: int) -> int:
         node = self.node_dim.size

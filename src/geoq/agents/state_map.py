@@ -435,6 +435,7 @@ def _around(a: np.ndarray) -> np.ndarray:
     for ax in range(a.ndim - 1):
         pad = [(1, 1) if i == ax else (0, 0) for i in range(a.ndim)]
         p, n = np.pad(out, pad), out.shape[ax]
-        out = sum(p[tuple(slice(s, s + n) if i == ax else slice(None) for i in range(a.ndim))]
-                  for s in range(3))  # fmt: skip
+        shifted = [p[tuple(slice(s, s + n) if i == ax else slice(None) for i in range(a.ndim))]
+                   for s in range(3)]  # fmt: skip
+        out = shifted[0] + shifted[1] + shifted[2]
     return out

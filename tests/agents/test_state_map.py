@@ -1,0 +1,204 @@
+"""The exploration map against oracles: brute-force cell lookup, scipy's shortest paths on
+grid worlds whose optimal routes are known in closed form, the kinematic test on
+known dynamics."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+import scipy.sparse
+from scipy.sparse.csgraph import shortest_path
+
+from geoq.agents.map_cells import CellTree
+from geoq.agents.state_map import MapSettings, StateMap, moves_follow_actions
+
+GAMMA = 0.9
+ONE_MOVE = MapSettings(side_scale=1.0)  # cells of one move: a grid world's cells
+
+
+def _discounted_cost(n: np.ndarray) -> np.ndarray:
+    """Value of ``n`` steps at reward -1: ``-(1 - gamma^n) / (1 - gamma)``."""
+    return -(1 - GAMMA**n) / (1 - GAMMA)
+
+
+# ----------------------------------------------------------------- the kinematic test
+def test_moves_follow_actions_tells_a_pushed_point_from_an_integrator() -> None:
+    rng = np.random.default_rng(0)
+    A = rng.uniform(-1, 1, (200, 2))
+    S = rng.uniform(0, 1, (200, 2))
+    pushed = np.clip(S + 0.05 * A + rng.normal(0, 0.002, S.shape), 0, 1)
+    blocked = rng.random(200) < 0.1  # a wall: some moves leave the point where it was
+    pushed[blocked] = S[blocked]
+    assert moves_follow_actions(S, A, pushed)
+    # x' = x + v dt, v' = v + a dt: the position's move is the velocity's, not the action's
+    X = np.column_stack([rng.uniform(-1, 1, 200), rng.uniform(-1, 1, 200)])
+    a = A[:, :1]
+    integrated = np.column_stack([X[:, 0] + 0.05 * X[:, 1], X[:, 1] + 0.05 * a[:, 0]])
+    assert not moves_follow_actions(X, a, integrated)
+    # a dimension that never moves says nothing; nothing moving at all is no kinematic task
+    still = np.column_stack([pushed, np.ones(200)])
+    assert moves_follow_actions(np.column_stack([S, np.ones(200)]), A, still)
+    assert not moves_follow_actions(S, A, S)
+
+
+# ----------------------------------------------------------------- the cells
+def test_cells_locate_every_point_in_the_leaf_whose_box_holds_it() -> None:
+    rng = np.random.default_rng(1)
+    tree = CellTree(np.zeros(2), np.ones(2), np.array([0.25, 0.5]))
+    X = rng.uniform(0, 1, (400, 2))
+    tree.locate(X, create=True)
+    for _ in range(30):  # random splits of random leaves
+        leaf = int(rng.integers(tree.n_leaves))
+        dim = int(rng.integers(2))
+        lo, hi = tree.leaf_low[leaf, dim], tree.leaf_high[leaf, dim]
+        tree.split(leaf, dim, float(lo + rng.uniform(0.1, 0.9) * (hi - lo)))
+    leaves = tree.locate(X)
+    inside = np.all((X[:, None, :] >= tree.leaf_low) & (X[:, None, :] < tree.leaf_high), axis=2)
+    assert np.all(inside.sum(axis=1) == 1)  # the leaves partition the grid cells they cover
+    np.testing.assert_array_equal(leaves, np.argmax(inside, axis=1))
+    copy = CellTree.from_arrays(tree.to_arrays())
+    np.testing.assert_array_equal(copy.locate(X), leaves)
+    with pytest.raises(ValueError, match="outside leaf"):
+        tree.split(0, 0, float(tree.leaf_high[0, 0]) + 1.0)
+
+
+def test_a_grid_cell_without_a_point_has_no_leaf() -> None:
+    tree = CellTree(np.zeros(1), np.ones(1), np.array([0.1]))
+    tree.locate(np.array([[0.05]]), create=True)
+    np.testing.assert_array_equal(tree.locate(np.array([[0.05], [0.55]])), [0, -1])
+
+
+# ----------------------------------------------------------------- grid worlds
+MOVES = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+
+
+def _grid_world(n: int, wall_col: int | None, door_row: int, goal: tuple[int, int],
+                visited: set[tuple[int, int]] | None = None) -> StateMap:  # fmt: skip
+    """An ``n x n`` grid world on the unit square (cell side ``1 / n``, moves of one cell),
+    every move tried once from every cell centre in ``visited`` (default: all but the
+    goal). A wall between columns ``wall_col`` and ``wall_col + 1`` blocks every row but
+    ``door_row`` (the point stays). Reward -1; entering ``goal`` terminates."""
+    h = 1.0 / n
+    S, K, S2, done = [], [], [], []
+    cells = visited if visited is not None else set(itertools.product(range(n), range(n)))
+    for (i, j), (k, move) in itertools.product(sorted(cells - {goal}), enumerate(MOVES)):
+        ti, tj = min(max(i + int(move[0]), 0), n - 1), min(max(j + int(move[1]), 0), n - 1)
+        if wall_col is not None and {i, ti} == {wall_col, wall_col + 1} and j != door_row:
+            ti, tj = i, j
+        S.append([(i + 0.5) * h, (j + 0.5) * h])
+        S2.append([(ti + 0.5) * h, (tj + 0.5) * h])
+        K.append(k)
+        done.append((ti, tj) == goal)
+    S_, S2_ = np.array(S), np.array(S2)
+    return StateMap(np.zeros(2), np.ones(2), 0.2 * MOVES, GAMMA, S_, np.array(K),
+                    -np.ones(len(K)), S2_, np.array(done), settings=ONE_MOVE)  # fmt: skip
+
+
+def _steps_to(n: int, wall_col: int | None, door_row: int, targets: list[tuple[int, int]],
+              blocked_cells: set[tuple[int, int]] = frozenset()) -> np.ndarray:  # fmt: skip
+    """Fewest moves ``[n, n]`` from each cell to any of ``targets`` (scipy's BFS)."""
+    idx = {c: a for a, c in enumerate(itertools.product(range(n), range(n)))}
+    rows, cols = [], []
+    for (i, j), move in itertools.product(itertools.product(range(n), range(n)), MOVES):
+        ti, tj = i + int(move[0]), j + int(move[1])
+        if not (0 <= ti < n and 0 <= tj < n) or (i, j) in blocked_cells:
+            continue
+        if wall_col is not None and {i, ti} == {wall_col, wall_col + 1} and j != door_row:
+            continue
+        rows.append(idx[(i, j)])
+        cols.append(idx[(ti, tj)])
+    graph = scipy.sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n * n, n * n))
+    dist = shortest_path(graph, unweighted=True, indices=[idx[t] for t in targets]).min(axis=0)
+    return dist.reshape(n, n)
+
+
+@pytest.mark.parametrize(("wall_col", "door_row"), [(None, 0), (2, 4), (1, 0)])
+def test_the_exploit_plan_values_every_cell_by_its_shortest_route_to_the_goal(
+    wall_col: int | None, door_row: int
+) -> None:
+    n, goal = 6, (5, 0)
+    m = _grid_world(n, wall_col, door_row, goal)
+    m.plan()
+    steps = _steps_to(n, wall_col, door_row, [goal])
+    centres = (np.array(list(itertools.product(range(n), range(n)))) + 0.5) / n
+    leaves = m.cells.locate(centres)
+    want = _discounted_cost(steps.reshape(-1))
+    away = np.array([tuple(c) != goal for c in itertools.product(range(n), range(n))])
+    np.testing.assert_allclose(m.V_exploit[leaves][away], want[away], atol=2e-3)
+    # the greedy move from each cell goes one step down the shortest route
+    best, known = m.greedy(centres[away])
+    assert known.all()
+    for c, choices in zip(centres[away], best, strict=True):
+        i, j = (c * n).astype(int)
+        for k in np.flatnonzero(choices):
+            ti, tj = i + int(MOVES[k, 0]), j + int(MOVES[k, 1])
+            assert 0 <= ti < n and 0 <= tj < n and steps[ti, tj] == steps[i, j] - 1, (i, j, k)
+
+
+def test_the_explore_plan_heads_for_the_nearest_unvisited_cell() -> None:
+    n = 6
+    visited = {(i, j) for i in range(3) for j in range(n)} | {(3, 5)}
+    m = _grid_world(n, wall_col=2, door_row=5, goal=(5, 0), visited=visited)
+    assert not m.done.any()  # no goal seen: every unvisited cell is worth r_max / (1 - gamma)
+    m.plan()
+    cells = itertools.product(range(n), range(n))
+    has_leaf = [c for c in cells if m.cells.locate((np.array([c]) + 0.5) / n)[0] >= 0]
+    frontier = [c for c in has_leaf if c not in visited]
+    steps = _steps_to(n, 2, 5, frontier)
+    for c in sorted(visited):
+        leaf = m.cells.locate((np.array([c]) + 0.5) / n)[0]
+        np.testing.assert_allclose(m.V_explore[leaf], _discounted_cost(steps[c]), atol=2e-3)
+    # from the far corner the explore move heads for the door's frontier
+    k = m.explore((np.array([0, 0]) + 0.5) / n, np.random.default_rng(0))
+    ti, tj = int(MOVES[k, 0]), int(MOVES[k, 1])
+    assert steps[ti, tj] == steps[0, 0] - 1
+    # the exploit plan knows no route yet: an unexplored cell is not a goal
+    assert not m.greedy(np.array([[0.1, 0.1]]))[1].any()
+
+
+def test_a_found_goal_beats_the_unexplored_in_the_exploit_plan() -> None:
+    n = 6
+    visited = {(i, j) for i in range(n) for j in range(3)}  # the bottom half, goal inside
+    m = _grid_world(n, wall_col=None, door_row=0, goal=(5, 0), visited=visited)
+    m.plan()
+    top = m.cells.locate(np.array([[0.5, 0.58]]))[0]  # row 3: unvisited, next to row 2
+    assert top >= 0 and m.V_exploit[top] == m.bounds()[0]
+    best, known = m.greedy(np.array([[0.5 / n, 2.5 / n]]))  # cell (0, 2), below row 3
+    assert known.all()
+    assert not best[0, 2]  # moving up into the unexplored is not the greedy move
+
+
+def test_a_map_saved_as_arrays_plans_and_acts_identically() -> None:
+    m = _grid_world(5, wall_col=1, door_row=4, goal=(4, 0))
+    m.plan()
+    copy = StateMap.from_arrays(m.to_arrays())
+    X = np.random.default_rng(2).uniform(0, 1, (50, 2))
+    for a, b in zip(m.greedy(X), copy.greedy(X), strict=True):
+        np.testing.assert_array_equal(a, b)
+    m.observe(np.array([0.1, 0.1]), 0, -1.0, np.array([0.3, 0.1]), False)
+    copy.observe(np.array([0.1, 0.1]), 0, -1.0, np.array([0.3, 0.1]), False)
+    m.plan()
+    copy.plan()
+    np.testing.assert_array_equal(m.Q_explore, copy.Q_explore)
+    bad = m.to_arrays()
+    bad["k"] = bad["k"][:-1]
+    with pytest.raises(ValueError, match="inconsistent"):
+        StateMap.from_arrays(bad)
+
+
+def test_a_wall_splits_the_cell_it_runs_through() -> None:
+    """One candidate moves from the left half of a cell and is blocked from its right
+    half (a wall at x = 0.6 inside the cell [0.4, 0.8)): the cell splits between."""
+    rng = np.random.default_rng(3)
+    S = np.column_stack([rng.uniform(0.0, 1.0, 300), rng.uniform(0.0, 1.0, 300)])
+    k = rng.integers(0, 4, 300)
+    S2 = np.clip(S + 0.1 * MOVES[k], 0, 1)
+    crossing = (k == 0) & (S[:, 0] < 0.6) & (S2[:, 0] >= 0.6)
+    S2[crossing] = S[crossing]
+    m = StateMap(np.zeros(2), np.ones(2), MOVES, GAMMA, S, k, -np.ones(300), S2,
+                 np.zeros(300, dtype=bool), settings=MapSettings(side_scale=4.0))  # fmt: skip
+    assert m.cells.n_leaves > int(np.prod(m.cells.n_grid))  # splits happened
+    walls = m.cells.leaf_high[:, 0][np.abs(m.cells.leaf_high[:, 0] - 0.6) < 0.05]
+    assert walls.size > 0  # a leaf ends at the wall

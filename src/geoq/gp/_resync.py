@@ -74,7 +74,8 @@ class FactorMemo:
         if batch is None or batch != self.batch or K.size == 0:
             return False
         scale = float(np.max(np.abs(self.K)))
-        return float(np.max(np.abs(K - self.K))) <= MEMO_ULPS * np.finfo(np.float64).eps * scale
+        gap = float(np.max(np.abs(K - self.K)))
+        return gap <= MEMO_ULPS * float(np.finfo(np.float64).eps) * scale
 
 
 def factor_gram(

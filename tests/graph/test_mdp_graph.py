@@ -342,3 +342,33 @@ def test_views_equal_the_copies_are_read_only_and_do_not_copy():
     assert g.shortest_paths_view.shape == (12, 12)
     assert np.array_equal(g.period_or_zeros(2), [2 * np.pi, 0.0])
     assert np.array_equal(MDPGraph().period_or_zeros(3), np.zeros(3))
+
+
+@settings(max_examples=40, deadline=None)
+@given(sequence=ops, eps=st.sampled_from([0.0, 0.3, 0.7, 1.0]), temporal=st.booleans())
+def test_lazy_paths_give_the_eager_graphs_edges_components_and_paths(sequence, eps, temporal):
+    """``lazy_paths`` (issue 31): the same weights after every change; components and
+    reachability from the weights alone while ``P`` is stale; ``P`` exact when read."""
+    lazy = MDPGraph(eps, temporal_edges=temporal, capacity=2, lazy_paths=True)
+    eager = MDPGraph(eps, temporal_edges=temporal, capacity=2)
+    n = 0
+    for op, arg in sequence:
+        for g in (lazy, eager):
+            if op == "add" or (op == "dup" and n):
+                x = np.array(arg, dtype=float) if op == "add" else g.nodes[arg % n].copy()
+                g.add_node(x)
+            elif op == "del" and n:
+                g.remove_node(arg % n)
+            elif op == "rollout":
+                g.start_rollout()
+        n = eager.n_nodes
+        np.testing.assert_array_equal(lazy.weights_view, eager.weights_view)
+        reach = np.isfinite(eager.shortest_paths)
+        labels = lazy.component_labels()
+        np.testing.assert_array_equal(labels[:, None] == labels[None, :], reach)
+        for i in range(n):
+            np.testing.assert_array_equal(lazy.reachable_from(i), reach[i])
+    P, D = lazy.shortest_paths, eager.shortest_paths
+    np.testing.assert_array_equal(np.isinf(P), np.isinf(D))
+    np.testing.assert_allclose(P, D, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(P, P.T)

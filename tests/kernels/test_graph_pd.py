@@ -263,3 +263,37 @@ def test_gp_fit_keeps_the_resistances_current(always_update):
     assert d.n_undone > 0  # the GP often deletes the point it has just added
     if always_update:  # fit clears the graph, then every change is an update
         assert d.n_full_recomputes == 0
+
+
+def test_the_resistance_kernel_needs_no_shortest_paths() -> None:
+    """Its graph keeps ``P`` lazily (issue 31): the same GP, bit for bit, as on a graph
+    whose shortest paths are kept current at every change."""
+    import warnings
+
+    from geoq.gp import NumericalWarning, SparseOnlineGP
+    from geoq.kernels import ResistanceKernel
+
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 8.0, 240)
+    X = np.column_stack([np.sin(t), np.cos(1.7 * t), 0.2 * rng.normal(size=t.size)])
+    y = np.sin(2.0 * t) + 0.05 * rng.normal(size=t.size)
+    gps = []
+    for lazy in (True, False):
+        kernel = ResistanceKernel(eps=0.3, lengthscale=1.0)
+        assert kernel.graph.lazy_paths
+        kernel.graph.lazy_paths = lazy
+        gp = SparseOnlineGP(kernel, noise=0.01, max_bv=30)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            for chunk in np.array_split(np.arange(t.size), 3):
+                kernel.start_rollout()
+                gp.partial_fit(X[chunk], y[chunk])
+        gps.append(gp)
+    lazy_gp, eager_gp = gps
+    assert lazy_gp.kernel.distance.n_full_recomputes > 1  # components without P
+    np.testing.assert_array_equal(lazy_gp.cholesky_factor, eager_gp.cholesky_factor)
+    got, want = lazy_gp.predict(X, return_std=True), eager_gp.predict(X, return_std=True)
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)
+    P, D = lazy_gp.kernel.graph.shortest_paths, eager_gp.kernel.graph.shortest_paths
+    np.testing.assert_allclose(P, D, rtol=1e-12, atol=0)

@@ -21,6 +21,7 @@ __all__ = ["check_saved_state", "graph_from_arrays", "graph_to_arrays"]
 
 def graph_to_arrays(g: MDPGraph) -> dict[str, np.ndarray]:
     """Configuration and full state (nodes, weights, P, roll-out bookkeeping) as arrays."""
+    g._refresh_paths()
     n = g._n
     out: dict[str, np.ndarray] = {
         "eps": np.asarray(g.eps),

@@ -52,6 +52,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse
+from scipy.sparse.csgraph import breadth_first_order, connected_components, shortest_path
 from scipy.spatial import cKDTree
 
 from geoq._geometry import (
@@ -87,6 +88,12 @@ class MDPGraph:
     period : optional per-dimension wrap-around period ``[d]`` (``0`` = ordinary).
     temporal_edges : also link successive nodes of the same roll-out.
     capacity : initial size of the preallocated buffers; they double when full.
+    lazy_paths : keep ``P`` exact only when it is read: a removed node leaves it
+        stale (no update of the paths through the node, the costly part), and the next
+        read recomputes it from the weights (scipy's shortest paths). For a graph whose
+        owner reads ``P`` rarely: the resistance kernel reads only components and
+        reachability (:meth:`component_labels`, :meth:`reachable_from`), which come
+        from the weights without ``P``. Not saved: a loaded graph keeps ``P`` current.
 
     Attributes (returned as copies)
     ----------
@@ -109,6 +116,7 @@ class MDPGraph:
         period: ArrayLike | None = None,
         temporal_edges: bool = False,
         capacity: int = 16,
+        lazy_paths: bool = False,
     ) -> None:
         eps = float(eps)
         if not 0.0 <= eps <= 1.0:
@@ -119,6 +127,8 @@ class MDPGraph:
         self.edge_weight: EdgeWeight = edge_weight
         self.period = as_period_vector(period, None)
         self.temporal_edges = bool(temporal_edges)
+        self.lazy_paths = bool(lazy_paths)
+        self._paths_stale = False  # P[:n, :n] not the shortest paths (lazy_paths only)
         self._zero_period: FloatArray | None = None
         self._dim: int | None = None if self.period is None else int(self.period.shape[0])
         self._cap = max(int(capacity), 1)
@@ -177,7 +187,35 @@ class MDPGraph:
     @property
     def shortest_paths(self) -> FloatArray:
         """[n, n] shortest-path lengths ``P`` (a copy); ``inf`` where unreachable."""
+        self._refresh_paths()
         return self._P[: self._n, : self._n].copy()
+
+    def _refresh_paths(self) -> None:
+        """Recompute a stale ``P`` (``lazy_paths``) from the weights, in place."""
+        if self._paths_stale:
+            n = self._n
+            if n:
+                P = shortest_path(_to_csgraph(self._W[:n, :n]), method="D", directed=False)
+                self._P[:n, :n] = np.minimum(P, P.T)  # exactly symmetric, as the updates keep it
+            self._paths_stale = False
+
+    def component_labels(self) -> IntArray:
+        """[n] connected-component label of each node (from the weights; ``P`` not needed)."""
+        n = self._n
+        _, label = connected_components(_to_csgraph(self._W[:n, :n]), directed=False)
+        return label.astype(np.int64)
+
+    def reachable_from(self, i: int) -> np.ndarray:
+        """[n] whether each node is connected to node ``i`` (itself included)."""
+        n = self._n
+        if not self._paths_stale:
+            return np.isfinite(self._P[i, :n])
+        order = breadth_first_order(
+            _to_csgraph(self._W[:n, :n]), int(i), directed=False, return_predecessors=False
+        )
+        out = np.zeros(n, dtype=np.bool_)
+        out[order] = True
+        return out
 
     @property
     def weights(self) -> FloatArray:
@@ -196,6 +234,7 @@ class MDPGraph:
     @property
     def shortest_paths_view(self) -> FloatArray:
         """[n, n] shortest paths ``P`` as a read-only view of the graph's buffer (no copy)."""
+        self._refresh_paths()
         return (self._view_cache or self._views())[1]
 
     @property
@@ -366,7 +405,8 @@ class MDPGraph:
         return int(cand[0]) + i + 1 if cand.size else -1
 
     def remove_node(self, index: int) -> None:
-        """Delete node ``index``; later indices shift down by one; ``P`` stays exact."""
+        """Delete node ``index``; later indices shift down by one; ``P`` stays exact (with
+        ``lazy_paths``: is recomputed at its next read)."""
         n = self._n
         v = int(index)
         if not 0 <= v < n:
@@ -377,7 +417,11 @@ class MDPGraph:
             s = self._temporal_neighbour(v, int(self._ids[v]), before=False)
             if p >= 0 and s >= 0:
                 bridge = (p - (p > v), s - (s > v))
-        self.last_delete_sources = int(delete_node_paths(self._P, self._W, n, v, DELETE_RTOL))
+        if self.lazy_paths:
+            self._paths_stale = True
+            self.last_delete_sources = 0
+        else:
+            self.last_delete_sources = int(delete_node_paths(self._P, self._W, n, v, DELETE_RTOL))
         drop_index(self._P, n, v, np.inf)
         drop_index(self._W, n, v, np.inf)
         self._X[v : n - 1] = self._X[v + 1 : n]
@@ -390,7 +434,8 @@ class MDPGraph:
             )
             if wab < self._W[a, b]:
                 self._W[a, b] = self._W[b, a] = wab
-            insert_edge(self._P, m, a, b, wab)
+            if not self._paths_stale:
+                insert_edge(self._P, m, a, b, wab)
         self._changed()
 
     def clear(self) -> None:
@@ -398,6 +443,7 @@ class MDPGraph:
         self._n = 0
         self._W.fill(np.inf)
         self._P.fill(np.inf)
+        self._paths_stale = False
         self._changed()
 
     def _changed(self) -> None:

@@ -127,7 +127,7 @@ class ResistanceDistance(BasisGraphDistance):
         if self._version != g.version:
             n = g.n_nodes
             with one_blas_thread():
-                self._R = effective_resistance(g._W[:n, :n], components_of(g._P[:n, :n]))
+                self._R = effective_resistance(g._W[:n, :n], g.component_labels())
             self._version = g.version
             self.n_full_recomputes += 1
         return self._R
@@ -257,7 +257,7 @@ class ResistanceDistance(BasisGraphDistance):
         new = nbr - (nbr > v)  # neighbours' indices after the removal
         ok = self._bridges(nbr, W_nbr, g.weights_view[np.ix_(new, new)])
         if ok and nbr.size >= 2:
-            split = bool(np.isinf(g.shortest_paths_view[new[0], new]).any())
+            split = not bool(g.reachable_from(int(new[0]))[new].all())
             w = w_row[nbr]
             ok = not split and bool(np.all(w > 0.0))
             if ok:
@@ -321,7 +321,9 @@ class ResistanceDistance(BasisGraphDistance):
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray]) -> ResistanceDistance:
-        out = cls(cls.graph_from_arrays(arrays), lengthscale=float(arrays["lengthscale"]))
+        graph = cls.graph_from_arrays(arrays)
+        graph.lazy_paths = True  # as ResistanceKernel makes it (not saved)
+        out = cls(graph, lengthscale=float(arrays["lengthscale"]))
         if "resistance" in arrays:  # files written before the incremental updates have none
             R = np.asarray(arrays["resistance"], dtype=np.float64)
             g = out.graph
@@ -371,6 +373,7 @@ class ResistanceKernel(GraphKernel):
             period=period,
             temporal_edges=temporal_edges,
             capacity=capacity,
+            lazy_paths=True,  # R needs components and reachability only
         )
         super().__init__(ResistanceDistance(graph, lengthscale), variance=amplitude)
 

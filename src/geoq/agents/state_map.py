@@ -15,9 +15,11 @@ Learning 21, 1995) and R-max's known-state MDP:
   (blocked and moved), along the dimension and threshold that best separate the
   blocked starts from the moved ones, if that beats not splitting and leaves both
   halves at least ``min_split_fraction`` of the grid side wide.
-* **Moves.** A tried (leaf, candidate) is worth the mean backup
-  ``r + gamma (1 - done) V(leaf(s'))`` of its transitions that left the leaf (or were
-  blocked, or ended the episode). An untried one is predicted from the same
+* **Moves.** A tried (leaf, candidate) is worth the mean backup of its transitions
+  that left the leaf (or were blocked, or ended the episode): ``n - 1`` steps inside
+  the leaf at the candidate's mean reward (``n`` the steps its mean move takes to
+  leave the leaf from the centre), then ``r + gamma (1 - done) V(leaf(s'))``, so a
+  fast move beats a slow one to the same leaf. An untried one is predicted from the same
   candidate's moved transitions in the ``3^d`` grid cells around (else anywhere):
   from the leaf's centre, the mean move repeated until it leaves the leaf (``n``
   steps, worth ``r (1 - gamma^n) / (1 - gamma) + gamma^n (1 - done) V``: a macro
@@ -28,9 +30,10 @@ Learning 21, 1995) and R-max's known-state MDP:
   *explore* plan values a leaf nothing has left from (the frontier) at
   ``max(0, r_max) / (1 - gamma)`` until a termination is seen, then at the best
   terminal reward (as good as the goal), with tried and predicted moves. The
-  *exploit* plan values the frontier at the lower bound and uses tried moves only
-  (predicted ones in a leaf with none tried): an unexplored state is not better than
-  a found goal.
+  *exploit* plan values the frontier at the lower bound and uses tried moves, and
+  predicted ones only towards a leaf that a tried move from the same leaf reached (no
+  route through a wall nothing crossed) or in a leaf with none tried: an unexplored
+  state is not better than a found goal.
 
 Every scale comes from the observation box and the transitions; the design's
 constants (:class:`MapSettings`) were chosen on TwoRooms and checked on five layouts

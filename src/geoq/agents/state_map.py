@@ -12,9 +12,10 @@ Learning 21, 1995) and R-max's known-state MDP:
 * **Blocked moves and splits.** A transition is *blocked* when it moved less than
   ``blocked_fraction`` of its candidate's typical move (the 0.9-quantile of that
   candidate's moves). A leaf is split where one candidate's outcomes in it disagree
-  (blocked and moved), along the dimension and threshold that best separate the
-  blocked starts from the moved ones, if that beats not splitting and leaves both
-  halves at least ``min_split_fraction`` of the grid side wide.
+  (blocked and moved), along the dimension (one the candidate moves along) and
+  threshold that best separate the blocked starts from the moved ones, if that beats
+  not splitting and leaves both halves at least ``min_split_fraction`` of the grid
+  side wide.
 * **Moves.** A tried (leaf, candidate) is worth the mean backup of its transitions
   that left the leaf (or were blocked, or ended the episode): ``n - 1`` steps inside
   the leaf at the candidate's mean reward (``n`` the steps its mean move takes to
@@ -197,6 +198,15 @@ class StateMap:
             todo += [leaf, new]
         return any_split
 
+    def _cut_dims(self, moved: np.ndarray) -> list[int]:
+        """The dimensions a candidate's outcomes may be cut along: those its ``moved``
+        transitions (bool ``[N]``) cover at least half as far as their main one, in grid
+        sides. A wall blocks a move by where it starts along the move; a cut across it
+        that separates a few blocked and moved starts does so by chance, and left cells
+        straddling TwoRooms' wall (docs/exploration.md)."""
+        step = np.abs((self.S2[moved] - self.S[moved]) / self.cells.side).mean(axis=0)
+        return np.flatnonzero(step >= 0.5 * step.max()).tolist()
+
     def _best_split(self, leaf: int, blocked: np.ndarray) -> tuple[int, float] | None:
         """The (dim, threshold) best separating one candidate's blocked starts from its
         moved ones in ``leaf``: fewest misclassified, then the widest gap; None if no
@@ -211,7 +221,7 @@ class StateMap:
             if b.all() or not b.any():
                 continue
             X = self.S[sel]
-            for dim in range(self.cells.dim):
+            for dim in self._cut_dims(sel & ~blocked):
                 order = np.argsort(X[:, dim], kind="stable")
                 x, bb = X[order, dim], b[order]
                 below_b = np.concatenate([[0], np.cumsum(bb)])

@@ -202,3 +202,23 @@ def test_a_wall_splits_the_cell_it_runs_through() -> None:
     assert m.cells.n_leaves > int(np.prod(m.cells.n_grid))  # splits happened
     walls = m.cells.leaf_high[:, 0][np.abs(m.cells.leaf_high[:, 0] - 0.6) < 0.05]
     assert walls.size > 0  # a leaf ends at the wall
+
+
+def test_a_cell_is_not_cut_across_its_move() -> None:
+    """A rightward move blocked from the lower half of a cell and not from the upper
+    (by chance, as a few tries can be): no wall blocks a move by its height, so no cut
+    is along y, although one at y = 0.2 would separate them exactly; the same outcomes
+    by x are cut at x = 0.2."""
+    rng = np.random.default_rng(4)
+    S = rng.uniform(0.02, 0.38, (40, 2))
+    k = np.zeros(40, dtype=np.int64)
+    for dim in (1, 0):
+        blocked = S[:, dim] < 0.2
+        S2 = np.where(blocked[:, None], S, S + 0.1 * MOVES[0])
+        m = StateMap(np.zeros(2), np.ones(2), MOVES, GAMMA, S, k, -np.ones(40), S2,
+                     np.zeros(40, dtype=bool), settings=MapSettings(side_scale=4.0))  # fmt: skip
+        cuts = m.cells.node_threshold[m.cells.node_dim == dim]
+        if dim == 1:
+            assert cuts.size == 0, cuts
+        else:
+            assert np.any(np.abs(cuts - 0.2) < 0.02), cuts

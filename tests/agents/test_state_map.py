@@ -222,3 +222,25 @@ def test_a_cell_is_not_cut_across_its_move() -> None:
             assert cuts.size == 0, cuts
         else:
             assert np.any(np.abs(cuts - 0.2) < 0.02), cuts
+
+
+def test_the_blocked_moves_kept_up_to_date_match_a_recount_from_scratch() -> None:
+    """``observe`` updates one candidate's typical move at a time; the blocked test then
+    agrees with every transition's move against its candidate's quantile recounted."""
+    rng = np.random.default_rng(6)
+    m = _grid_world(5, wall_col=1, door_row=4, goal=(4, 0))
+    for i in range(120):
+        s, k = rng.uniform(0, 1, 2), int(rng.integers(4))
+        s2 = s if rng.random() < 0.3 else np.clip(s + rng.uniform(0.5, 1.5) * 0.2 * MOVES[k], 0, 1)
+        if i % 2:  # long moves right: the grid world's one-cell moves right become "blocked"
+            s, k = rng.uniform(0, 0.1, 2), 0
+            s2 = s + np.array([0.9, 0.0])
+        m.observe(s, k, -1.0, s2, False)
+    q, fraction = m.settings.quantile, m.settings.blocked_fraction
+    dist = [float(np.linalg.norm((b - a) / m.cells.side)) for a, b in zip(m.S, m.S2, strict=True)]
+    moves = np.array(dist)
+    want = [d < fraction * np.quantile(moves[m.k == k], q) for d, k in zip(dist, m.k, strict=True)]
+    np.testing.assert_array_equal(m._blocked(), want)
+    assert np.any(want & (m.k == 0) & (moves > 0.5))  # the typical move right has grown
+    m.plan()  # the arrays hold plans for the current leaves
+    np.testing.assert_array_equal(StateMap.from_arrays(m.to_arrays())._blocked(), want)

@@ -128,6 +128,7 @@ class StateMap:
         moves = np.abs(self.S2 - self.S)
         side = self.settings.side_scale * np.quantile(moves, self.settings.quantile, axis=0)
         self.cells = CellTree(low, high, side)
+        self._set_typical_moves()
         self.leaf_s = self.cells.locate(self.S, create=True)
         self.leaf_s2 = self.cells.locate(self.S2, create=True)
         self._refine(set(np.unique(self.leaf_s).tolist()))
@@ -150,18 +151,23 @@ class StateMap:
         return int(self.k.size)
 
     # ----------------------------------------------------------------- the data
-    def _distances(self) -> FloatArray:
-        """Every transition's move ``[N]`` in grid sides."""
-        return np.linalg.norm((self.S2 - self.S) / self.cells.side, axis=1)
+    def _distances(self, S: FloatArray, S2: FloatArray) -> FloatArray:
+        """The moves ``S -> S2`` (``[n, d]`` each) in grid sides ``[n]``."""
+        return np.linalg.norm((S2 - S) / self.cells.side, axis=1)
+
+    def _set_typical_moves(self) -> None:
+        """Every transition's move ``[N]`` (``_dist``) and each candidate's typical move
+        ``[K]`` (``_typical``: the ``quantile`` of its moves; 0 if never taken). Kept up
+        to date by :meth:`observe`, which changes one candidate's at a time."""
+        self._dist = self._distances(self.S, self.S2)
+        self._typical = np.zeros(self.n_candidates)
+        for k in np.unique(self.k):
+            self._typical[k] = np.quantile(self._dist[self.k == k], self.settings.quantile)
 
     def _blocked(self) -> np.ndarray:
         """Blocked transitions ``[N]`` (bool): less than ``blocked_fraction`` of their
         candidate's typical move (a median is dragged to 0 by repeated blocked tries)."""
-        dist, q = self._distances(), self.settings.quantile
-        typical = np.zeros(self.n_candidates)
-        for k in np.unique(self.k):
-            typical[k] = np.quantile(dist[self.k == k], q)
-        return dist < self.settings.blocked_fraction * typical[self.k]
+        return self._dist < self.settings.blocked_fraction * self._typical[self.k]
 
     def observe(self, s: FloatArray, k: int, r: float, s2: FloatArray, terminated: bool) -> None:
         """Add one transition ``s -(candidate k)-> s2``; split its leaf where it disagrees.
@@ -176,11 +182,10 @@ class StateMap:
         self.k, self.r = np.append(self.k, k), np.append(self.r, r)
         self.done = np.append(self.done, terminated)
         self.leaf_s, self.leaf_s2 = np.append(self.leaf_s, c), np.append(self.leaf_s2, end)
+        self._dist = np.append(self._dist, self._distances(s[None], s2[None]))
+        self._typical[k] = np.quantile(self._dist[self.k == k], self.settings.quantile)
         split = self._refine({c})
-        dist = self._distances()[self.k == k]
-        blocked = dist[-1] < self.settings.blocked_fraction * np.quantile(
-            dist, self.settings.quantile
-        )
+        blocked = self._dist[-1] < self.settings.blocked_fraction * self._typical[k]
         self.changed |= bool(terminated or split or new_end or blocked)
 
     def _refine(self, leaves: set[int]) -> bool:
@@ -393,6 +398,7 @@ class StateMap:
             or np.any(m.k < 0) or np.any(m.k >= K) or n == 0
         ):  # fmt: skip
             raise ValueError("inconsistent exploration map")
+        m._set_typical_moves()
         return m
 
 

@@ -2,8 +2,9 @@
 
 ``WallsEnv`` copies ``geoq/TwoRooms-v0``'s dynamics (a point in the unit square,
 moves of ``0.05 * clip(a, -1, 1)`` per component, clipped to the square, ``-1``
-per step, a goal disc) with any number of vertical walls, each with its own door,
-and the same crossing rule as :func:`geoq.envs.two_rooms_blocked` (a move that
+per step, a goal disc) with any number of vertical and horizontal walls, each with
+its own door, optionally observed in a box other than the unit square, and the same
+crossing rule as :func:`geoq.envs.two_rooms_blocked` (a move that
 crosses a wall outside its door leaves the state exactly unchanged). The
 explorers never read these parameters: they are here to check that nothing in
 a prototype was written for TwoRooms' geometry.
@@ -23,7 +24,12 @@ __all__ = ["LAYOUTS", "Layout", "WallsEnv", "make_env"]
 
 @dataclass(frozen=True)
 class Layout:
-    """Walls ``(x, door_low, door_high)``, the start centre, the goal disc, the time limit."""
+    """Walls, the start centre, the goal disc, the time limit, the observed box.
+
+    ``walls`` are vertical ``(x, door_low, door_high)``, ``floors`` horizontal
+    ``(y, door_low, door_high)``, all in the unit square where the dynamics run;
+    the agent observes ``box[0] + (box[1] - box[0]) * state``.
+    """
 
     walls: tuple[tuple[float, float, float], ...]
     start: tuple[float, float]
@@ -32,6 +38,8 @@ class Layout:
     start_noise: float = 0.05
     horizon: int = 200
     step_size: float = 0.05
+    floors: tuple[tuple[float, float, float], ...] = ()
+    box: tuple[float, float] = (0.0, 1.0)
 
 
 #: Layouts other than TwoRooms' (wall at x = 0.5, door at the top).
@@ -47,6 +55,26 @@ LAYOUTS: dict[str, Layout] = {
     # TwoRooms with moves half as long (twice the steps per route, time limit 400).
     "small-steps": Layout(
         walls=((0.5, 0.8, 1.0),), start=(0.25, 0.2), goal=(0.75, 0.2), step_size=0.025, horizon=400
+    ),
+    # Added after the map went into the agent (2026-12-03), none used to tune it:
+    # a horizontal wall with its door on the left, start and goal on the right.
+    "floor-door-left": Layout(
+        walls=(), floors=((0.5, 0.0, 0.2),), start=(0.8, 0.2), goal=(0.8, 0.8)
+    ),
+    # Three walls, doors alternating top/bottom/top: a route about three times TwoRooms'.
+    "three-walls": Layout(
+        walls=((0.25, 0.8, 1.0), (0.5, 0.0, 0.2), (0.75, 0.8, 1.0)),
+        start=(0.1, 0.2),
+        goal=(0.9, 0.2),
+    ),
+    # TwoRooms observed in the box [-5, 5]^2 rather than the unit square.
+    "big-box": Layout(
+        walls=((0.5, 0.8, 1.0),), start=(0.25, 0.2), goal=(0.75, 0.2), box=(-5.0, 5.0)
+    ),
+    # A vertical and a horizontal wall: four rooms, the route through two doors
+    # (bottom-left, bottom-right, top-right), the top-left room a dead end.
+    "four-rooms": Layout(
+        walls=((0.5, 0.0, 0.2),), floors=((0.5, 0.8, 1.0),), start=(0.25, 0.25), goal=(0.75, 0.75)
     ),
 }
 
@@ -72,7 +100,8 @@ class WallsEnv(gymnasium.Env):
     def __init__(self, layout: Layout) -> None:
         self.layout = layout
         self.action_space = spaces.Box(low=-1.0, high=1.0, shape=(2,), dtype=np.float64)
-        self.observation_space = spaces.Box(low=0.0, high=1.0, shape=(2,), dtype=np.float64)
+        lo, hi = layout.box
+        self.observation_space = spaces.Box(low=lo, high=hi, shape=(2,), dtype=np.float64)
         self.state = np.zeros(2)
         self._steps = 0
 
@@ -83,19 +112,26 @@ class WallsEnv(gymnasium.Env):
         noise = self.layout.start_noise
         self.state = np.asarray(self.layout.start) + self.np_random.uniform(-noise, noise, 2)
         self._steps = 0
-        return self.state.copy(), {}
+        return self._observe(), {}
+
+    def _observe(self) -> np.ndarray:
+        lo, hi = self.layout.box
+        return lo + (hi - lo) * self.state
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         p = self.state
         q = np.clip(p + self.layout.step_size * a, 0.0, 1.0)
-        if not any(_blocked(p, q, w) for w in self.layout.walls):
+        if not (
+            any(_blocked(p, q, w) for w in self.layout.walls)
+            or any(_blocked(p[::-1], q[::-1], f) for f in self.layout.floors)
+        ):
             self.state = q
         self._steps += 1
         done = bool(np.hypot(*(self.state - self.layout.goal)) <= self.layout.goal_radius)
         truncated = not done and self._steps >= self.layout.horizon
         info: dict[str, Any] = {"is_success": done} if done or truncated else {}
-        return self.state.copy(), -1.0, done, truncated, info
+        return self._observe(), -1.0, done, truncated, info
 
 
 def make_env(name: str) -> gymnasium.Env:

@@ -255,6 +255,24 @@ class SparseOnlineGP(OnlineGPState):
         if record_drift:
             self._counts.max_q_drift = max(self._counts.max_q_drift, drift)
 
+    @property
+    def score_refresh_every(self) -> int:
+        """Resyncs between exact refreshes of the deletion scores when a basis-tracking
+        kernel's factor did not change (``max(64, 2 max_bv)``, the interval of other
+        kernels' refreshes)."""
+        return max(64, 2 * self.max_bv)
+
+    def _factor_unchanged(self, R_new: FloatArray) -> bool:
+        """Whether ``R_new`` is the factor in the state bit for bit (finite state): the
+        GP added a point and deleted it again, and the kernel's ``K_BV`` came back with
+        its graph (about half of a ``resistance`` fit's resyncs at its budget)."""
+        m = self._m
+        return (
+            np.array_equal(self._R[:m, :m], R_new)
+            and bool(np.isfinite(self._mu[:m]).all())
+            and bool(np.isfinite(self._S[:m, :m]).all())
+        )
+
     @single_blas_thread  # per change with a resistance kernel: limit here, not per update
     def _resync_q(self) -> None:
         """Refresh the deletion scores exactly; re-anchor ``R`` for basis-tracking kernels.
@@ -275,6 +293,14 @@ class SparseOnlineGP(OnlineGPState):
             return
         if self.kernel.tracks_basis:
             R_new = self._factor_gram(self._batch)
+            if self._factor_unchanged(R_new):
+                # The steps since the last re-anchoring were Bayes updates on this prior:
+                # 0 <= S <= I holds to rounding, and the scores' O(m) updates drift as
+                # those of any kernel, refreshed every ``score_refresh_every`` resyncs.
+                self._counts.python["q_resyncs"] += 1
+                if self._counts.python["q_resyncs"] % self.score_refresh_every == 0:
+                    self._refresh_scores()
+                return
             batch, last = self._last_projected
             self._mu[:m], self._S[:m, :m], projected = reanchor(
                 self._R[:m, :m],

@@ -298,6 +298,7 @@ class SparseOnlineGP(OnlineGPState):
                 # 0 <= S <= I holds to rounding, and the scores' O(m) updates drift as
                 # those of any kernel, refreshed every ``score_refresh_every`` resyncs.
                 self._counts.python["q_resyncs"] += 1
+                self._last_projected = (self._batch, 0)  # as a projection that found none
                 if self._counts.python["q_resyncs"] % self.score_refresh_every == 0:
                     self._refresh_scores()
                 return

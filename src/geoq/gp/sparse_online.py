@@ -34,7 +34,8 @@ Numerical health
   from ``R`` (the largest relative drift found is
   :attr:`OnlineDiagnostics.max_q_drift`), and for a basis-tracking kernel (whose
   ``K_BV`` changes as its graph grows) ``R`` is re-factorised from the current
-  ``K_BV``. Amortised cost O(m^2) per change.
+  ``K_BV`` (when it comes back unchanged, ``diag(Q)`` is recomputed every
+  ``max(64, 2 max_bv)`` resyncs only). Amortised cost O(m^2) per change.
 * ``C`` is symmetric bit for bit (every update adds symmetric terms).
 * Indefinite kernels (the geodesic kernel): negative novelty is treated as "not
   novel" and counted; below rounding level ``v = R^{-T} k_x`` is scaled onto
@@ -282,6 +283,10 @@ class SparseOnlineGP(OnlineGPState):
         posterior is transformed so that the posterior of ``f_BV`` (mean ``R^T mu``,
         covariance ``R^T S R``) is unchanged. For other kernels the factor updates
         are backward stable and only the O(m)-updated scores accumulate rounding.
+        A factor that came back unchanged bit for bit (a point added and deleted again)
+        leaves the posterior as the updates left it (Bayes updates on that prior: no
+        re-anchoring, nothing to project) and the scores refreshed every
+        :attr:`score_refresh_every` resyncs (``docs/design-notes.md``).
         The projection that follows starts with the full eigendecomposition when the
         last one of the same batch projected more than an eighth of the spectrum
         (:func:`~geoq.gp.numerics.project_whitened_covariance`; consecutive counts

@@ -57,3 +57,60 @@ def test_both_projections_agree_to_rounding(above: int) -> None:
     np.testing.assert_allclose(partial, full, rtol=0, atol=1e-12)
     eig = np.linalg.eigvalsh(full)
     assert eig.min() > -1e-9 and eig.max() < 1 + 1e-9
+
+
+def _stream_data() -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(7)
+    t = np.linspace(0.0, 6.0, 160)
+    X = np.column_stack([np.sin(t), np.cos(1.3 * t), 0.1 * rng.normal(size=t.size)])
+    return X, np.sin(2.0 * t) + 0.05 * rng.normal(size=t.size)
+
+
+@pytest.mark.parametrize("kind", ["resistance", "pd_novelty_geodesic"])
+def test_a_resync_that_finds_the_factor_unchanged_matches_a_full_one(
+    kind: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Oracle (issue 31): a resync that finds the factor of ``K_BV`` unchanged keeps the
+    posterior and the step's scores (refreshed every ``score_refresh_every`` resyncs);
+    the full resync (re-anchoring, projection, exact scores) gives the same basis set
+    and the same predictions to rounding."""
+    import warnings
+
+    from geoq.gp import NumericalWarning, SparseOnlineGP
+    from geoq.gp.pd_novelty import PDNoveltyOnlineGP
+    from geoq.kernels import GeodesicKernel, ResistanceKernel
+
+    X, y = _stream_data()
+    skipped: list[bool] = []
+    unchanged = SparseOnlineGP._factor_unchanged
+
+    def spy(self: SparseOnlineGP, R_new: np.ndarray) -> bool:
+        out = unchanged(self, R_new)
+        skipped.append(out)
+        return out
+
+    def fit(skip: bool) -> tuple[SparseOnlineGP, np.ndarray, np.ndarray]:
+        with monkeypatch.context() as mp:
+            mp.setattr(SparseOnlineGP, "_factor_unchanged", spy if skip else lambda *_: False)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NumericalWarning)
+                if kind == "resistance":
+                    gp: SparseOnlineGP = SparseOnlineGP(
+                        ResistanceKernel(eps=0.3), noise=0.01, max_bv=25
+                    )
+                else:
+                    gp = PDNoveltyOnlineGP(
+                        GeodesicKernel(eps=0.3, sigma_sp=1.0), noise=0.01, max_bv=25
+                    )
+                gp.fit(X, y)
+                mean, std = gp.predict(X, return_std=True)
+        return gp, mean, std
+
+    fast, mean, std = fit(True)
+    assert any(skipped), "no resync found the factor unchanged"
+    full, mean_full, std_full = fit(False)
+    np.testing.assert_array_equal(fast.basis_vectors, full.basis_vectors)
+    scale = float(np.max(np.abs(mean_full)))
+    np.testing.assert_allclose(mean, mean_full, rtol=0, atol=1e-8 * scale)
+    np.testing.assert_allclose(std, std_full, rtol=0, atol=1e-8 * float(np.max(std_full)))
+    assert fast.diagnostics.q_resyncs == full.diagnostics.q_resyncs

@@ -372,3 +372,34 @@ def test_lazy_paths_give_the_eager_graphs_edges_components_and_paths(sequence, e
     np.testing.assert_array_equal(np.isinf(P), np.isinf(D))
     np.testing.assert_allclose(P, D, rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(P, P.T)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_dense_component_labels_and_reachability_match_scipy(seed: int) -> None:
+    """Oracle (issue 31): the compiled dense search gives scipy's component labels (same
+    numbering) and breadth-first reachability, on graphs with isolated nodes, several
+    components and zero-length edges."""
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    from geoq.graph._apsp import dense_components, dense_reachable
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 60))
+    W = np.full((n + 3, n + 3), np.inf)  # a buffer larger than the graph, as MDPGraph's
+    for _ in range(int(rng.integers(0, 2 * n))):
+        i, j = rng.integers(0, n, size=2)
+        if i != j:
+            W[i, j] = W[j, i] = 0.0 if rng.random() < 0.1 else rng.random()
+    W[n:, :] = W[:, n:] = 1.0  # outside the graph: must be ignored
+    mask = np.isfinite(W[:n, :n])
+    n_comp, want = connected_components(csr_array(mask), directed=False)
+    label = np.empty(n, dtype=np.int64)
+    assert dense_components(W, n, label) == n_comp
+    np.testing.assert_array_equal(label, want)
+    for start in range(n):
+        order = breadth_first_order(csr_array(mask), start, directed=False,
+                                    return_predecessors=False)  # fmt: skip
+        out = np.zeros(n, dtype=np.bool_)
+        dense_reachable(W, n, start, out)
+        np.testing.assert_array_equal(np.flatnonzero(out), np.sort(order))

@@ -79,7 +79,9 @@ class OnlineDiagnostics:
     """Updates that used the noise variance ``CONFIG.noise_floor * k(x, x)`` instead of a
     smaller ``sigma0^2`` (below the rounding level of the posterior)."""
     q_resyncs: int = 0
-    """Exact refreshes of ``diag(Q)`` (re-factorisations of ``K_BV`` for basis-tracking kernels)."""
+    """Resyncs: exact refreshes of ``diag(Q)``, and for basis-tracking kernels
+    re-factorisations of ``K_BV`` (when the factor came back unchanged, the refresh is
+    made every ``SparseOnlineGP.score_refresh_every`` of them only)."""
     jitter_events: int = 0
     """Factorisations of ``K_BV`` that needed jitter (:func:`~geoq.gp.numerics.safe_cholesky`)."""
     eig_clips: int = 0

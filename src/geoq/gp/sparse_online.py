@@ -34,7 +34,8 @@ Numerical health
   from ``R`` (the largest relative drift found is
   :attr:`OnlineDiagnostics.max_q_drift`), and for a basis-tracking kernel (whose
   ``K_BV`` changes as its graph grows) ``R`` is re-factorised from the current
-  ``K_BV``. Amortised cost O(m^2) per change.
+  ``K_BV`` (when it comes back unchanged, ``diag(Q)`` is recomputed every
+  ``max(64, 2 max_bv)`` resyncs only). Amortised cost O(m^2) per change.
 * ``C`` is symmetric bit for bit (every update adds symmetric terms).
 * Indefinite kernels (the geodesic kernel): negative novelty is treated as "not
   novel" and counted; below rounding level ``v = R^{-T} k_x`` is scaled onto
@@ -255,6 +256,24 @@ class SparseOnlineGP(OnlineGPState):
         if record_drift:
             self._counts.max_q_drift = max(self._counts.max_q_drift, drift)
 
+    @property
+    def score_refresh_every(self) -> int:
+        """Resyncs between exact refreshes of the deletion scores when a basis-tracking
+        kernel's factor did not change (``max(64, 2 max_bv)``, the interval of other
+        kernels' refreshes)."""
+        return max(64, 2 * self.max_bv)
+
+    def _factor_unchanged(self, R_new: FloatArray) -> bool:
+        """Whether ``R_new`` is the factor in the state bit for bit (finite state): the
+        GP added a point and deleted it again, and the kernel's ``K_BV`` came back with
+        its graph (about half of a ``resistance`` fit's resyncs at its budget)."""
+        m = self._m
+        return (
+            np.array_equal(self._R[:m, :m], R_new)
+            and bool(np.isfinite(self._mu[:m]).all())
+            and bool(np.isfinite(self._S[:m, :m]).all())
+        )
+
     @single_blas_thread  # per change with a resistance kernel: limit here, not per update
     def _resync_q(self) -> None:
         """Refresh the deletion scores exactly; re-anchor ``R`` for basis-tracking kernels.
@@ -264,6 +283,10 @@ class SparseOnlineGP(OnlineGPState):
         posterior is transformed so that the posterior of ``f_BV`` (mean ``R^T mu``,
         covariance ``R^T S R``) is unchanged. For other kernels the factor updates
         are backward stable and only the O(m)-updated scores accumulate rounding.
+        A factor that came back unchanged bit for bit (a point added and deleted again)
+        leaves the posterior as the updates left it (Bayes updates on that prior: no
+        re-anchoring, nothing to project) and the scores refreshed every
+        :attr:`score_refresh_every` resyncs (``docs/design-notes.md``).
         The projection that follows starts with the full eigendecomposition when the
         last one of the same batch projected more than an eighth of the spectrum
         (:func:`~geoq.gp.numerics.project_whitened_covariance`; consecutive counts
@@ -275,6 +298,15 @@ class SparseOnlineGP(OnlineGPState):
             return
         if self.kernel.tracks_basis:
             R_new = self._factor_gram(self._batch)
+            if self._factor_unchanged(R_new):
+                # The steps since the last re-anchoring were Bayes updates on this prior:
+                # 0 <= S <= I holds to rounding, and the scores' O(m) updates drift as
+                # those of any kernel, refreshed every ``score_refresh_every`` resyncs.
+                self._counts.python["q_resyncs"] += 1
+                self._last_projected = (self._batch, 0)  # as a projection that found none
+                if self._counts.python["q_resyncs"] % self.score_refresh_every == 0:
+                    self._refresh_scores()
+                return
             batch, last = self._last_projected
             self._mu[:m], self._S[:m, :m], projected = reanchor(
                 self._R[:m, :m],

@@ -52,7 +52,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse
-from scipy.sparse.csgraph import breadth_first_order, connected_components, shortest_path
+from scipy.sparse.csgraph import shortest_path
 from scipy.spatial import cKDTree
 
 from geoq._geometry import (
@@ -63,7 +63,7 @@ from geoq._geometry import (
 )
 from geoq._typing import ArrayLike, FloatArray, IntArray
 from geoq._validation import as_float_point
-from geoq.graph._apsp import add_linked_node, insert_edge
+from geoq.graph._apsp import add_linked_node, dense_components, dense_reachable, insert_edge
 from geoq.graph._apsp_delete import DELETE_RTOL, delete_node_paths, drop_index
 from geoq.graph._persist import graph_from_arrays, graph_to_arrays
 
@@ -202,19 +202,19 @@ class MDPGraph:
     def component_labels(self) -> IntArray:
         """[n] connected-component label of each node (from the weights; ``P`` not needed)."""
         n = self._n
-        _, label = connected_components(_to_csgraph(self._W[:n, :n]), directed=False)
-        return label.astype(np.int64)
+        label = np.empty(n, dtype=np.int64)
+        dense_components(self._W, n, label)  # scipy's numbering, without the sparse copy
+        return label
 
     def reachable_from(self, i: int) -> np.ndarray:
         """[n] whether each node is connected to node ``i`` (itself included)."""
         n = self._n
         if not self._paths_stale:
             return np.isfinite(self._P[i, :n])
-        order = breadth_first_order(
-            _to_csgraph(self._W[:n, :n]), int(i), directed=False, return_predecessors=False
-        )
+        if not 0 <= int(i) < n:
+            raise IndexError(f"node {i} out of range for a graph of {n} nodes")
         out = np.zeros(n, dtype=np.bool_)
-        out[order] = True
+        dense_reachable(self._W, n, int(i), out)
         return out
 
     @property

@@ -174,43 +174,11 @@ def add_linked_node(
 
 
 @numba.njit(cache=True, nogil=True)
-def dense_components(W: FloatArray, n: int, label: IntArray) -> int:
-    """Connected components of the graph whose edges are the finite entries of ``W[:n, :n]``
-    (symmetric): ``label[:n]`` 0, 1, ... in order of each component's first node (scipy's
-    ``connected_components`` numbering); returns their number. A breadth-first search over
-    the dense rows, O(n^2): for a few hundred nodes a fraction of the sparse conversion
-    scipy needs first."""
-    for i in range(n):
-        label[i] = -1
+def _label_component(W: FloatArray, n: int, start: int, label: IntArray, c: int) -> None:
+    """``label[j] = c`` for every unlabelled (``-1``) node ``j`` connected to ``start`` in
+    the graph of the finite entries of ``W[:n, :n]`` (breadth-first search, O(n^2))."""
     queue = np.empty(n, dtype=np.int64)
-    c = 0
-    for s in range(n):
-        if label[s] >= 0:
-            continue
-        label[s] = c
-        queue[0] = s
-        head, tail = 0, 1
-        while head < tail:
-            i = queue[head]
-            head += 1
-            row = W[i]
-            for j in range(n):
-                if label[j] < 0 and np.isfinite(row[j]):
-                    label[j] = c
-                    queue[tail] = j
-                    tail += 1
-        c += 1
-    return c
-
-
-@numba.njit(cache=True, nogil=True)
-def dense_reachable(W: FloatArray, n: int, start: int, out: np.ndarray) -> None:
-    """``out[:n]``: whether each node is connected to ``start`` (itself included) in the
-    graph of the finite entries of ``W[:n, :n]`` (breadth-first search, O(n^2))."""
-    for i in range(n):
-        out[i] = False
-    queue = np.empty(n, dtype=np.int64)
-    out[start] = True
+    label[start] = c
     queue[0] = start
     head, tail = 0, 1
     while head < tail:
@@ -218,7 +186,33 @@ def dense_reachable(W: FloatArray, n: int, start: int, out: np.ndarray) -> None:
         head += 1
         row = W[i]
         for j in range(n):
-            if not out[j] and np.isfinite(row[j]):
-                out[j] = True
+            if label[j] < 0 and np.isfinite(row[j]):
+                label[j] = c
                 queue[tail] = j
                 tail += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def dense_components(W: FloatArray, n: int, label: IntArray) -> int:
+    """Connected components of the graph whose edges are the finite entries of ``W[:n, :n]``
+    (symmetric): ``label[:n]`` 0, 1, ... in order of each component's first node (scipy's
+    ``connected_components`` numbering); returns their number. A breadth-first search over
+    the dense rows, O(n^2): for a few hundred nodes a fraction of the sparse conversion
+    scipy needs first."""
+    label[:n] = -1
+    c = 0
+    for s in range(n):
+        if label[s] < 0:
+            _label_component(W, n, s, label, c)
+            c += 1
+    return c
+
+
+@numba.njit(cache=True, nogil=True)
+def dense_reachable(W: FloatArray, n: int, start: int, out: np.ndarray) -> None:
+    """``out[:n]``: whether each node is connected to ``start`` (itself included) in the
+    graph of the finite entries of ``W[:n, :n]`` (breadth-first search, O(n^2))."""
+    label = np.full(n, -1, dtype=np.int64)
+    _label_component(W, n, start, label, 0)
+    for i in range(n):
+        out[i] = label[i] == 0

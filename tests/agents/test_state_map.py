@@ -137,6 +137,29 @@ def test_the_exploit_plan_values_every_cell_by_its_shortest_route_to_the_goal(
             assert 0 <= ti < n and 0 <= tj < n and steps[ti, tj] == steps[i, j] - 1, (i, j, k)
 
 
+@pytest.mark.parametrize(("wall_col", "door_row"), [(None, 0), (2, 4)])
+def test_the_greedy_policy_weighs_each_move_by_laplaces_rule_in_closed_form(
+    wall_col: int | None, door_row: int
+) -> None:
+    """Every move tried once from every cell: one that moved works with chance
+    ``p = (1 + 1) / (1 + 2)``, and failing leaves the policy standing for good (the least
+    return ``lo``), so ``n`` cells from the goal are worth ``a (1 - b^n) / (1 - b)`` with
+    ``a = -p + (1 - p) lo`` and ``b = p gamma``; a blocked move is never taken."""
+    n, goal = 6, (5, 0)
+    m = _grid_world(n, wall_col, door_row, goal)
+    m.plan()
+    steps = _steps_to(n, wall_col, door_row, [goal]).reshape(-1)
+    centres = (np.array(list(itertools.product(range(n), range(n)))) + 0.5) / n
+    away = np.array([tuple(c) != goal for c in itertools.product(range(n), range(n))])
+    lo, p = m.bounds()[0], 2 / 3
+    a, b = -p + (1 - p) * lo, p * GAMMA
+    want = a * (1 - b ** steps[away]) / (1 - b)
+    Q = m.Q_greedy[m.cells.locate(centres[away])]
+    np.testing.assert_allclose(Q.max(axis=1), want, atol=2e-3)
+    blocked = np.all(m.S2 == m.S, axis=1)  # into the wall or the border
+    assert blocked.any() and np.all(np.isneginf(m.Q_greedy[m.leaf_s[blocked], m.k[blocked]]))
+
+
 def test_the_explore_plan_heads_for_the_nearest_unvisited_cell() -> None:
     n = 6
     visited = {(i, j) for i in range(3) for j in range(n)} | {(3, 5)}
@@ -182,6 +205,10 @@ def test_a_map_saved_as_arrays_plans_and_acts_identically() -> None:
     m.plan()
     copy.plan()
     np.testing.assert_array_equal(m.Q_explore, copy.Q_explore)
+    np.testing.assert_array_equal(m.Q_greedy, copy.Q_greedy)
+    # a map saved before the cautious greedy policy acts on its exploit plan until it plans
+    old = {k: v for k, v in m.to_arrays().items() if k != "Q_greedy"}
+    np.testing.assert_array_equal(StateMap.from_arrays(old).Q_greedy, m.Q_exploit)
     bad = m.to_arrays()
     bad["k"] = bad["k"][:-1]
     with pytest.raises(ValueError, match="inconsistent"):

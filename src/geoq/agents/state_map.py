@@ -136,6 +136,7 @@ class StateMap:
         self.V_exploit = np.zeros(self.cells.n_leaves)
         self.Q_explore = np.zeros((self.cells.n_leaves, self.n_candidates))
         self.Q_exploit = np.zeros((self.cells.n_leaves, self.n_candidates))
+        self.Q_greedy = np.zeros((self.cells.n_leaves, self.n_candidates))
         self.changed = True
         self.plans = 0
         self.sweeps = 0
@@ -311,7 +312,7 @@ class StateMap:
         tried = np.bincount(idx, minlength=L * K).reshape(L, K)
         lo, _ = self.bounds()
         predicted = (tried == 0) & (target >= -1) & visited[:, None]
-        model = _Model(self, use, idx, tried, target, r_hat, d_hat, n_steps)
+        model = _Model(self, use, idx, tried, target, r_hat, d_hat, n_steps, blocked)
         # exploit: a predicted move only towards a leaf some tried move from here reached
         # (no route through a wall nothing crossed), or in a leaf with no tried move
         reached = np.isin(np.arange(L)[:, None] * L + target,
@@ -323,6 +324,7 @@ class StateMap:
         self.V_exploit = model.solve(self._grown(self.V_exploit), exploit_moves, visited, lo)
         self.Q_explore = model.q(self.V_explore, explore_moves, frontier)
         self.Q_exploit = model.q(self.V_exploit, exploit_moves, lo)
+        self.Q_greedy = model.q_cautious(exploit_moves, visited, lo)
         self.sweeps += model.sweeps
         self.plans += 1
         self.changed = False
@@ -353,19 +355,21 @@ class StateMap:
         return int(best[0] if best.size == 1 else rng.choice(best))
 
     def greedy(self, states: FloatArray) -> tuple[np.ndarray, np.ndarray]:
-        """The exploit plan's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
-        value range) at each state ``[n, d]`` and whether the map knows a route from there
-        ``[n]`` (no randomness; changes nothing)."""
+        """The greedy policy's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
+        value range; the exploit plan's moves, each weighted by the chance it works from
+        anywhere in its leaf: :meth:`_Model.q_cautious`) at each state ``[n, d]`` and
+        whether the exploit plan knows a route from there ``[n]`` (no randomness;
+        changes nothing)."""
         X = np.asarray(states, dtype=np.float64)
         leaves = self.cells.locate(X)
-        q = self.Q_exploit[np.maximum(leaves, 0)]
+        q = self.Q_greedy[np.maximum(leaves, 0)]
         lo, hi = self.bounds()
         best = q >= q.max(axis=1, keepdims=True) - 1e-9 * (hi - lo)
         return best, self.knows_route(leaves)
 
     # ----------------------------------------------------------------- persistence
     _ARRAYS = ("S", "S2", "k", "r", "done", "leaf_s", "leaf_s2", "V_explore", "V_exploit",
-               "Q_explore", "Q_exploit", "candidates")  # fmt: skip
+               "Q_explore", "Q_exploit", "Q_greedy", "candidates")  # fmt: skip
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         """The map as named arrays (:meth:`from_arrays` inverts it)."""
@@ -382,6 +386,8 @@ class StateMap:
         m.cells = CellTree.from_arrays(
             {k[6:]: v for k, v in arrays.items() if k.startswith("cells/")}
         )
+        if "Q_greedy" not in arrays:  # a map saved before the cautious greedy policy
+            arrays = {**arrays, "Q_greedy": arrays["Q_exploit"]}
         for name in cls._ARRAYS:
             setattr(m, name, np.asarray(arrays[name]))
         m.k, m.leaf_s, m.leaf_s2 = (np.asarray(getattr(m, n), dtype=np.int64)
@@ -395,6 +401,7 @@ class StateMap:
             or m.done.shape != (n,) or m.leaf_s.shape != (n,) or m.leaf_s2.shape != (n,)
             or m.V_explore.shape != (L,) or m.V_exploit.shape != (L,)
             or m.Q_explore.shape != (L, K) or m.Q_exploit.shape != (L, K)
+            or m.Q_greedy.shape != (L, K)
             or np.any(m.k < 0) or np.any(m.k >= K) or n == 0
         ):  # fmt: skip
             raise ValueError("inconsistent exploration map")
@@ -407,8 +414,9 @@ class _Model:
 
     def __init__(self, m: StateMap, use: np.ndarray, idx: IntArray, tried: IntArray,
                  target: IntArray, r_hat: FloatArray, d_hat: FloatArray,
-                 n_steps: FloatArray) -> None:  # fmt: skip
+                 n_steps: FloatArray, blocked: np.ndarray) -> None:  # fmt: skip
         self.m, self.use, self.idx, self.tried = m, use, idx, tried
+        self.moved = ~blocked[use]  # [N_used]
         self.target, self.r_hat, self.d_hat = target, r_hat, d_hat
         g = m.gamma
         self.discount = g**n_steps  # [L, K]
@@ -419,19 +427,56 @@ class _Model:
         self.inside_reward = r_hat[m.leaf_s[use], m.k[use]] * (1 - self.inside_discount) / (1 - g)
         self.sweeps = 0
 
+    def _backups(self, V: FloatArray) -> FloatArray:
+        """Each used transition's backup ``[N_used]``: ``n - 1`` steps inside its leaf at
+        the mean reward, then its observed exit."""
+        m, u = self.m, self.use
+        exit_backup = m.r[u] + m.gamma * (~m.done[u]) * V[m.leaf_s2[u]]
+        return self.inside_reward + self.inside_discount * exit_backup
+
+    def _predicted_backups(self, V: FloatArray, unvisited: float) -> FloatArray:
+        """Every (leaf, candidate)'s macro backup ``[L, K]`` to its predicted end leaf."""
+        v_end = np.where(self.target >= 0, V[np.maximum(self.target, 0)], unvisited)
+        return self.macro_reward + self.discount * (1 - self.d_hat) * v_end
+
+    def q_cautious(self, predicted: np.ndarray, visited: np.ndarray, lo: float) -> FloatArray:
+        """``Q [L, K]`` of a deterministic policy that cannot retry: a move works with
+        the chance Laplace's rule gives it from its tries in the leaf, ``(moved + 1) /
+        (tried + 2)`` (a predicted move: 1/2), and where it does not the policy stands
+        still for good (worth ``lo``, the least return); a working move is worth the mean
+        of its moved backups. Solved by value iteration from ``lo``. A leaf whose moves
+        were tried from one part of it, or blocked from part of it, is trusted less than
+        one crossed from everywhere (docs/exploration.md: the greedy policy's failures)."""
+        L, K = self.tried.shape
+        ok = self.moved
+        n_moved = np.bincount(self.idx[ok], minlength=L * K).reshape(L, K)
+        p = (n_moved + 1) / (self.tried + 2)
+
+        def q(V: FloatArray) -> FloatArray:
+            total = np.bincount(self.idx[ok], weights=self._backups(V)[ok],
+                                minlength=L * K).reshape(L, K)  # fmt: skip
+            Q = np.where(n_moved > 0, p * total / np.maximum(n_moved, 1) + (1 - p) * lo, -np.inf)
+            return np.where(predicted, 0.5 * self._predicted_backups(V, lo) + 0.5 * lo, Q)
+
+        V = np.full(L, lo)
+        for _ in range(self.m.settings.max_sweeps):
+            best = q(V).max(axis=1)
+            new = np.where(visited & np.isfinite(best), best, lo)
+            self.sweeps += 1
+            if np.max(np.abs(new - V)) < self.m.settings.tol:
+                return q(new)
+            V = new
+        return q(V)
+
     def q(self, V: FloatArray, predicted: np.ndarray, unvisited: float) -> FloatArray:
         """``Q [L, K]``: mean backups of tried moves, macro backups of predicted ones, -inf
         for neither. Both count the steps a move takes to leave its leaf (from the
         centre, at the candidate's mean move), so a fast move beats a slow one to the
         same leaf."""
-        m, L, K, u = self.m, self.tried.shape[0], self.tried.shape[1], self.use
-        exit_backup = m.r[u] + m.gamma * (~m.done[u]) * V[m.leaf_s2[u]]
-        backup = self.inside_reward + self.inside_discount * exit_backup
-        total = np.bincount(self.idx, weights=backup, minlength=L * K).reshape(L, K)
+        L, K = self.tried.shape
+        total = np.bincount(self.idx, weights=self._backups(V), minlength=L * K).reshape(L, K)
         Q = np.where(self.tried > 0, total / np.maximum(self.tried, 1), -np.inf)
-        v_end = np.where(self.target >= 0, V[np.maximum(self.target, 0)], unvisited)
-        pred = self.macro_reward + self.discount * (1 - self.d_hat) * v_end
-        return np.where(predicted, pred, Q)
+        return np.where(predicted, self._predicted_backups(V, unvisited), Q)
 
     def solve(self, V: FloatArray, predicted: np.ndarray, visited: np.ndarray,
               unvisited: float) -> FloatArray:  # fmt: skip

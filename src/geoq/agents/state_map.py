@@ -356,10 +356,8 @@ class StateMap:
 
     def greedy(self, states: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         """The greedy policy's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
-        value range; the exploit plan's moves, each weighted by the chance it works from
-        anywhere in its leaf: :meth:`_Model.q_cautious`) at each state ``[n, d]`` and
-        whether the exploit plan knows a route from there ``[n]`` (no randomness;
-        changes nothing)."""
+        value range; :meth:`_Model.q_cautious`) at each state ``[n, d]`` and whether the
+        exploit plan knows a route from there ``[n]`` (no randomness; changes nothing)."""
         X = np.asarray(states, dtype=np.float64)
         leaves = self.cells.locate(X)
         q = self.Q_greedy[np.maximum(leaves, 0)]
@@ -440,13 +438,10 @@ class _Model:
         return self.macro_reward + self.discount * (1 - self.d_hat) * v_end
 
     def q_cautious(self, predicted: np.ndarray, visited: np.ndarray, lo: float) -> FloatArray:
-        """``Q [L, K]`` of a deterministic policy that cannot retry: a move works with
-        the chance Laplace's rule gives it from its tries in the leaf, ``(moved + 1) /
-        (tried + 2)`` (a predicted move: 1/2), and where it does not the policy stands
-        still for good (worth ``lo``, the least return); a working move is worth the mean
-        of its moved backups. Solved by value iteration from ``lo``. A leaf whose moves
-        were tried from one part of it, or blocked from part of it, is trusted less than
-        one crossed from everywhere (docs/exploration.md: the greedy policy's failures)."""
+        """``Q [L, K]`` of a policy that cannot retry: a move works with Laplace's chance
+        ``(moved + 1) / (tried + 2)`` over its tries in the leaf (predicted: 1/2), else the
+        policy stands still for good (``lo``); a working move is worth the mean of its moved
+        backups. Value iteration from ``lo`` (docs/exploration.md, a cautious greedy policy)."""
         L, K = self.tried.shape
         ok = self.moved
         n_moved = np.bincount(self.idx[ok], minlength=L * K).reshape(L, K)

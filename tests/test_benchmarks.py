@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -36,6 +37,16 @@ def test_every_benchmark_runs_quick() -> None:
         assert f"=== {name} ===" in done.stdout and f"({name} took" in done.stdout, name
 
 
+def _make_layout(name: str) -> Any:
+    """``benchmarks/explore/layouts.make_env(name)`` (the benchmarks are not a package)."""
+    path = str(BENCHMARKS / "explore")
+    if path not in sys.path:
+        sys.path.insert(0, path)
+    from layouts import make_env
+
+    return make_env(name)
+
+
 @pytest.mark.skipif(not BENCHMARKS.is_dir(), reason="benchmarks/ not shipped here")
 @pytest.mark.parametrize(
     ("name", "moves", "expected"),
@@ -55,10 +66,7 @@ def test_a_layouts_walls_stop_a_point_and_its_doors_let_it_through(
     """The crossing rules of ``benchmarks/explore/layouts.py`` (what the exploration
     figures are measured on), checked with scripted walks: blocked just below a wall,
     through at a door (the goal is never on these paths)."""
-    sys.path.insert(0, str(BENCHMARKS / "explore"))
-    from layouts import make_env
-
-    env = make_env(name)
+    env = _make_layout(name)
     s, _ = env.reset(seed=0)
     for a in moves:
         s, *_ = env.step(np.array(a))
@@ -73,10 +81,7 @@ def test_a_layouts_walls_stop_a_point_and_its_doors_let_it_through(
 
 @pytest.mark.skipif(not BENCHMARKS.is_dir(), reason="benchmarks/ not shipped here")
 def test_a_layout_in_another_box_observes_the_unit_square_rescaled() -> None:
-    sys.path.insert(0, str(BENCHMARKS / "explore"))
-    from layouts import make_env
-
-    unit, big = make_env("narrow-door"), make_env("big-box")
+    unit, big = _make_layout("narrow-door"), _make_layout("big-box")
     assert np.array_equal(big.observation_space.low, [-5.0, -5.0])
     su, _ = unit.reset(seed=1)
     sb, _ = big.reset(seed=1)

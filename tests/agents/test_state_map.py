@@ -271,3 +271,38 @@ def test_the_blocked_moves_kept_up_to_date_match_a_recount_from_scratch() -> Non
     assert np.any(want & (m.k == 0) & (moves > 0.5))  # the typical move right has grown
     m.plan()  # the arrays hold plans for the current leaves
     np.testing.assert_array_equal(StateMap.from_arrays(m.to_arrays())._blocked(), want)
+
+
+def test_a_greedy_failure_seen_splits_the_cell_that_straddles_the_wall() -> None:
+    """Leaf aliasing (docs/exploration.md): a wall at x = 0.5, a door at 0.6 <= y < 0.7, and
+    no transition from the wall's left in the cell [0.3, 0.6)^2, which straddles it. The
+    rightward moves tried from the cell's right part all moved, so the greedy policy at
+    (0.45, 0.45) presses into the wall, for good: ``predict`` learns nothing. Once that
+    step is observed (in training) the cell splits at the wall, and from the new cell,
+    whose only try was blocked, the map knows no route (the GP chooses there)."""
+    step = 0.1
+
+    def world(s: np.ndarray, k: int) -> np.ndarray:
+        s2 = np.clip(s + step * MOVES[k], 0, 1)
+        crosses = (s[0] < 0.5) != (s2[0] < 0.5) and not 0.6 <= s[1] < 0.7
+        return s.copy() if crosses else s2
+
+    rng = np.random.default_rng(0)
+    S = rng.uniform(0, 1, (1500, 2))
+    S = S[
+        (S[:, 0] < 0.85)
+        & ~((S[:, 0] >= 0.3) & (S[:, 0] < 0.5) & (S[:, 1] >= 0.3) & (S[:, 1] < 0.6))
+    ]
+    k = rng.integers(0, 4, len(S))
+    S2 = np.array([world(s, int(a)) for s, a in zip(S, k, strict=True)])
+    m = StateMap(np.zeros(2), np.ones(2), step * MOVES, GAMMA, S, k, -np.ones(len(S)), S2,
+                 S2[:, 0] >= 0.85, settings=MapSettings())  # fmt: skip
+    start = np.array([0.45, 0.45])
+    m.plan()
+    best, known = m.greedy(start[None])
+    assert known[0] and best[0, 0] and np.array_equal(world(start, 0), start)  # into the wall
+    m.observe(start, 0, -1.0, world(start, 0), False)
+    m.plan()
+    leaf = m.cells.locate(start[None])[0]
+    assert 0.45 < m.cells.leaf_high[leaf, 0] <= 0.5  # the cell now ends at the wall
+    assert not m.greedy(start[None])[1][0]

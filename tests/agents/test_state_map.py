@@ -12,7 +12,8 @@ import scipy.sparse
 from scipy.sparse.csgraph import shortest_path
 
 from geoq.agents.map_cells import CellTree
-from geoq.agents.state_map import MapSettings, StateMap, moves_follow_actions
+from geoq.agents.map_explorer import moves_follow_actions
+from geoq.agents.state_map import MapSettings, StateMap
 
 GAMMA = 0.9
 ONE_MOVE = MapSettings(side_scale=1.0)  # cells of one move: a grid world's cells

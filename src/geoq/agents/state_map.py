@@ -39,7 +39,8 @@ Learning 21, 1995) and R-max's known-state MDP:
 Every scale comes from the observation box and the transitions; the design's
 constants (:class:`MapSettings`) were chosen on TwoRooms and checked on five layouts
 (docs/exploration.md, prototype 4). The map assumes the moves are the action's own
-(a kinematic task: :func:`moves_follow_actions`); the agent builds it only there.
+(a kinematic task: :func:`~geoq.agents.map_explorer.moves_follow_actions`); the agent
+builds it only there.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ import numpy as np
 from geoq._typing import FloatArray, IntArray
 from geoq.agents.map_cells import CellTree
 
-__all__ = ["MapSettings", "StateMap", "moves_follow_actions"]
+__all__ = ["MapSettings", "StateMap"]
 
 
 @dataclass(frozen=True)
@@ -77,26 +78,6 @@ class MapSettings:
     tol: float = 1e-3
     """Value iteration stops when no value moves more than this."""
     max_sweeps: int = 2000
-
-
-def moves_follow_actions(
-    states: FloatArray, actions: FloatArray, next_states: FloatArray, threshold: float = 0.5
-) -> bool:
-    """Whether every observation dimension's move ``s' - s`` is explained by the action.
-
-    The least-squares fit of ``s' - s`` on ``[a, 1]`` explains at least ``threshold`` of
-    each dimension's variance (``R^2``; a dimension that never moved is ignored). True
-    for a point moved by its action (TwoRooms and its layouts: ``R^2`` 0.85-1.00 over
-    the first 64-256 steps), False where the state integrates a velocity (swing-up,
-    MountainCarContinuous, Pendulum-v1: the least dimension's ``R^2`` <= 0.08).
-    """
-    D = np.asarray(next_states, dtype=np.float64) - np.asarray(states, dtype=np.float64)
-    X = np.hstack([np.asarray(actions, dtype=np.float64), np.ones((D.shape[0], 1))])
-    coef, *_ = np.linalg.lstsq(X, D, rcond=None)
-    total = np.sum((D - D.mean(axis=0)) ** 2, axis=0)
-    residual = np.sum((D - X @ coef) ** 2, axis=0)
-    moved = total > 0
-    return bool(moved.any() and np.all(residual[moved] <= (1 - threshold) * total[moved]))
 
 
 class StateMap:

@@ -100,9 +100,14 @@ class MapExplorer:
         seen = np.vstack([stored.states, stored.next_states])
         lo = seen.min(axis=0) if low is None else np.where(np.isfinite(low), low, seen.min(0))
         hi = seen.max(axis=0) if high is None else np.where(np.isfinite(high), high, seen.max(0))
+        declared = (
+            low is not None
+            and high is not None
+            and bool(np.all(np.isfinite(low)) and np.all(np.isfinite(high)))
+        )
         return StateMap(lo, np.maximum(hi, lo + 1e-12), self.candidates, self.gamma,
                         stored.states, self.choices(stored.actions), stored.rewards,
-                        stored.next_states, stored.terminated)  # fmt: skip
+                        stored.next_states, stored.terminated, declared_box=declared)  # fmt: skip
 
     def action(self, s: FloatArray, rng: np.random.Generator) -> FloatArray | None:
         """The training action ``[1, d_a]`` at ``s [1, d_s]``: the map's, or None (no map)."""

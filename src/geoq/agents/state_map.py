@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from geoq._typing import FloatArray, IntArray
+from geoq.agents._map_model import LeafModel
 from geoq.agents.map_cells import CellTree
 
 __all__ = ["MapSettings", "StateMap"]
@@ -91,14 +92,18 @@ class StateMap:
     states, choices, rewards, next_states, terminated : the transitions so far
         (``[N, d]``, ``[N]`` candidate indices, ``[N]``, ``[N, d]``, ``[N]``), ``N >= 1``:
         they fix the grid's side.
+    declared_box : whether ``low, high`` are the observation space's own bounds (not the
+        data's range): only then, when no termination has been seen and nothing is left
+        to explore, are the leaves halved to search inside them (:meth:`plan`).
     """
 
     def __init__(
         self, low: FloatArray, high: FloatArray, candidates: FloatArray, gamma: float,
         states: FloatArray, choices: IntArray, rewards: FloatArray, next_states: FloatArray,
-        terminated: Any, settings: MapSettings | None = None,
+        terminated: Any, settings: MapSettings | None = None, declared_box: bool = False,
     ) -> None:  # fmt: skip
         self.settings = settings or MapSettings()
+        self.declared_box = bool(declared_box)
         self.candidates = np.asarray(candidates, dtype=np.float64)
         self.gamma = float(gamma)
         self.S = np.asarray(states, dtype=np.float64).copy()
@@ -121,6 +126,7 @@ class StateMap:
         self.changed = True
         self.plans = 0
         self.sweeps = 0
+        self.halvings = 0
 
     @property
     def n_candidates(self) -> int:
@@ -280,9 +286,48 @@ class StateMap:
         return target, mean[d], mean[d + 1], n_steps
 
     def plan(self) -> None:
-        """Value iteration for both plans, if the map changed since the last one."""
+        """Value iteration for both plans, if the map changed since the last one; in a
+        declared box with nothing left to explore, halve the leaves and plan again."""
         if not self.changed:
             return
+        self._solve()
+        while self.declared_box and self._nothing_to_explore() and self._halve_leaves():
+            self._solve()
+        self.changed = False
+
+    def _nothing_to_explore(self) -> bool:
+        """No termination seen and every visited leaf's explore value within
+        ``route_margin`` of the least return: no unvisited leaf is in reach."""
+        lo, hi = self.bounds()
+        top = lo + self.settings.route_margin * (hi - lo)
+        visited = np.bincount(self.leaf_s, minlength=self.cells.n_leaves) > 0
+        return not self.done.any() and bool(self.V_explore[visited].max() < top)
+
+    def _halve_leaves(self) -> bool:
+        """Halve each visited leaf's part inside the box along its widest side (in grid
+        sides) where the halves stay ``min_split_fraction`` wide; whether any was. The
+        halves nothing has started from are the explore plan's new frontier, so a goal
+        smaller than a leaf is still sought (docs/exploration.md). Each round at most
+        doubles the visited leaves, and a leaf that is not visited is not halved: the
+        leaves stay fewer than twice the transitions plus the rounds x the leaves."""
+        low = np.maximum(self.cells.leaf_low, self.cells.low)
+        high = np.minimum(self.cells.leaf_high, self.cells.high)
+        width = (high - low) / self.cells.side
+        dims = np.argmax(width, axis=1)
+        visited = np.bincount(self.leaf_s, minlength=width.shape[0]) > 0
+        wide = width[np.arange(width.shape[0]), dims] / 2 >= self.settings.min_split_fraction
+        halved = np.flatnonzero(visited & wide)
+        for leaf in halved.tolist():
+            dim = int(dims[leaf])
+            self.cells.split(leaf, dim, float(0.5 * (low[leaf, dim] + high[leaf, dim])))
+        if halved.size:
+            self.leaf_s = self.cells.locate(self.S)
+            self.leaf_s2 = self.cells.locate(self.S2)
+            self.halvings += 1
+        return bool(halved.size)
+
+    def _solve(self) -> None:
+        """Value iteration for both plans on the current leaves."""
         L, K = self.cells.n_leaves, self.n_candidates
         blocked = self._blocked()
         target, r_hat, d_hat, n_steps = self._predictions(blocked)
@@ -293,7 +338,7 @@ class StateMap:
         tried = np.bincount(idx, minlength=L * K).reshape(L, K)
         lo, _ = self.bounds()
         predicted = (tried == 0) & (target >= -1) & visited[:, None]
-        model = _Model(self, use, idx, tried, target, r_hat, d_hat, n_steps, blocked)
+        model = LeafModel(self, use, idx, tried, target, r_hat, d_hat, n_steps, blocked)
         # exploit: a predicted move only towards a leaf some tried move from here reached
         # (no route through a wall nothing crossed), or in a leaf with no tried move
         reached = np.isin(np.arange(L)[:, None] * L + target,
@@ -308,7 +353,6 @@ class StateMap:
         self.Q_greedy = model.q_cautious(exploit_moves, visited, lo)
         self.sweeps += model.sweeps
         self.plans += 1
-        self.changed = False
 
     def _grown(self, V: FloatArray) -> FloatArray:
         """``V`` warm start for the current leaves (a new leaf starts at 0)."""
@@ -337,7 +381,7 @@ class StateMap:
 
     def greedy(self, states: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         """The greedy policy's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
-        value range; :meth:`_Model.q_cautious`) at each state ``[n, d]`` and whether the
+        value range; :meth:`LeafModel.q_cautious`) at each state ``[n, d]`` and whether the
         exploit plan knows a route from there ``[n]`` (no randomness; changes nothing)."""
         X = np.asarray(states, dtype=np.float64)
         leaves = self.cells.locate(X)
@@ -354,7 +398,8 @@ class StateMap:
         """The map as named arrays (:meth:`from_arrays` inverts it)."""
         out = {f"cells/{k}": v for k, v in self.cells.to_arrays().items()}
         out.update({name: getattr(self, name) for name in self._ARRAYS})
-        out["counters"] = np.array([self.gamma, float(self.changed), self.plans, self.sweeps])
+        out["counters"] = np.array([self.gamma, float(self.changed), self.plans, self.sweeps,
+                                    self.halvings, float(self.declared_box)])  # fmt: skip
         return out
 
     @classmethod
@@ -372,8 +417,13 @@ class StateMap:
         m.k, m.leaf_s, m.leaf_s2 = (np.asarray(getattr(m, n), dtype=np.int64)
                                     for n in ("k", "leaf_s", "leaf_s2"))  # fmt: skip
         m.done = np.asarray(m.done, dtype=bool)
-        gamma, changed, plans, sweeps = np.asarray(arrays["counters"], dtype=np.float64)
+        counters = np.asarray(arrays["counters"], dtype=np.float64)
+        if counters.shape not in ((4,), (6,)):
+            raise ValueError("inconsistent exploration map")
+        # a map saved before the halving: none done, and none to do (it keeps on as it did)
+        gamma, changed, plans, sweeps, halvings, declared = (*counters, 0.0, 0.0)[:6]
         m.gamma, m.changed, m.plans, m.sweeps = float(gamma), bool(changed), int(plans), int(sweeps)
+        m.halvings, m.declared_box = int(halvings), bool(declared)
         n, L, K = m.k.size, m.cells.n_leaves, m.n_candidates
         if (
             m.S.shape != (n, m.cells.dim) or m.S2.shape != m.S.shape or m.r.shape != (n,)
@@ -386,87 +436,6 @@ class StateMap:
             raise ValueError("inconsistent exploration map")
         m._set_typical_moves()
         return m
-
-
-class _Model:
-    """The map's MDP over leaves for one planning round: Bellman backups of both plans."""
-
-    def __init__(self, m: StateMap, use: np.ndarray, idx: IntArray, tried: IntArray,
-                 target: IntArray, r_hat: FloatArray, d_hat: FloatArray,
-                 n_steps: FloatArray, blocked: np.ndarray) -> None:  # fmt: skip
-        self.m, self.use, self.idx, self.tried = m, use, idx, tried
-        self.moved = ~blocked[use]  # [N_used]
-        self.target, self.r_hat, self.d_hat = target, r_hat, d_hat
-        g = m.gamma
-        self.discount = g**n_steps  # [L, K]
-        self.macro_reward = r_hat * (1 - self.discount) / (1 - g)
-        # a tried move's exit is its last step: n - 1 steps inside the leaf come first
-        n_used = n_steps[m.leaf_s[use], m.k[use]] - 1  # [N_used]
-        self.inside_discount = g**n_used
-        self.inside_reward = r_hat[m.leaf_s[use], m.k[use]] * (1 - self.inside_discount) / (1 - g)
-        self.sweeps = 0
-
-    def _backups(self, V: FloatArray) -> FloatArray:
-        """Each used transition's backup ``[N_used]``: ``n - 1`` steps inside its leaf at
-        the mean reward, then its observed exit."""
-        m, u = self.m, self.use
-        exit_backup = m.r[u] + m.gamma * (~m.done[u]) * V[m.leaf_s2[u]]
-        return self.inside_reward + self.inside_discount * exit_backup
-
-    def _predicted_backups(self, V: FloatArray, unvisited: float) -> FloatArray:
-        """Every (leaf, candidate)'s macro backup ``[L, K]`` to its predicted end leaf."""
-        v_end = np.where(self.target >= 0, V[np.maximum(self.target, 0)], unvisited)
-        return self.macro_reward + self.discount * (1 - self.d_hat) * v_end
-
-    def q_cautious(self, predicted: np.ndarray, visited: np.ndarray, lo: float) -> FloatArray:
-        """``Q [L, K]`` of a policy that cannot retry: a move works with Laplace's chance
-        ``(moved + 1) / (tried + 2)`` over its tries in the leaf (predicted: 1/2), else the
-        policy stands still for good (``lo``); a working move is worth the mean of its moved
-        backups. Value iteration from ``lo`` (docs/exploration.md, a cautious greedy policy)."""
-        L, K = self.tried.shape
-        ok = self.moved
-        n_moved = np.bincount(self.idx[ok], minlength=L * K).reshape(L, K)
-        p = (n_moved + 1) / (self.tried + 2)
-
-        def q(V: FloatArray) -> FloatArray:
-            total = np.bincount(self.idx[ok], weights=self._backups(V)[ok],
-                                minlength=L * K).reshape(L, K)  # fmt: skip
-            Q = np.where(n_moved > 0, p * total / np.maximum(n_moved, 1) + (1 - p) * lo, -np.inf)
-            return np.where(predicted, 0.5 * self._predicted_backups(V, lo) + 0.5 * lo, Q)
-
-        V = np.full(L, lo)
-        for _ in range(self.m.settings.max_sweeps):
-            best = q(V).max(axis=1)
-            new = np.where(visited & np.isfinite(best), best, lo)
-            self.sweeps += 1
-            if np.max(np.abs(new - V)) < self.m.settings.tol:
-                return q(new)
-            V = new
-        return q(V)
-
-    def q(self, V: FloatArray, predicted: np.ndarray, unvisited: float) -> FloatArray:
-        """``Q [L, K]``: mean backups of tried moves, macro backups of predicted ones, -inf
-        for neither. Both count the steps a move takes to leave its leaf (from the
-        centre, at the candidate's mean move), so a fast move beats a slow one to the
-        same leaf."""
-        L, K = self.tried.shape
-        total = np.bincount(self.idx, weights=self._backups(V), minlength=L * K).reshape(L, K)
-        Q = np.where(self.tried > 0, total / np.maximum(self.tried, 1), -np.inf)
-        return np.where(predicted, self._predicted_backups(V, unvisited), Q)
-
-    def solve(self, V: FloatArray, predicted: np.ndarray, visited: np.ndarray,
-              unvisited: float) -> FloatArray:  # fmt: skip
-        """Value iteration from ``V`` (warm start) until no value moves more than ``tol``;
-        a leaf nothing has left from, or with no move, is worth ``unvisited``."""
-        V = np.where(visited, V, unvisited)
-        for _ in range(self.m.settings.max_sweeps):
-            best = self.q(V, predicted, unvisited).max(axis=1)
-            new = np.where(visited & np.isfinite(best), best, unvisited)
-            self.sweeps += 1
-            if np.max(np.abs(new - V)) < self.m.settings.tol:
-                return new
-            V = new
-        return V
 
 
 def _around(a: np.ndarray) -> np.ndarray:

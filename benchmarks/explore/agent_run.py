@@ -36,12 +36,18 @@ def greedy_success(agent: GPQAgent, env_name: str, episodes: int) -> float:
     return wins / episodes
 
 
-def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def protocol_parser(description: str) -> argparse.ArgumentParser:
+    """The protocol's options: layout, seeds, steps and steps per ``learn`` call."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("--env", default="two-rooms")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     p.add_argument("--steps", type=int, default=2000)
     p.add_argument("--every", type=int, default=250)
+    return p
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = protocol_parser(__doc__.splitlines()[0])
     p.add_argument("--episodes", type=int, default=20)
     a = p.parse_args(argv)
     for seed in a.seeds:

@@ -35,6 +35,12 @@ Learning 21, 1995) and R-max's known-state MDP:
   predicted ones only towards a leaf that a tried move from the same leaf reached (no
   route through a wall nothing crossed) or in a leaf with none tried: an unexplored
   state is not better than a found goal.
+* **Halving.** In an observation box the space declares (finite bounds), when no
+  termination has been seen and no unvisited leaf is in the explore plan's reach,
+  every visited leaf is halved along its widest side and the plans solved again: the
+  halves nothing started from are the new frontier, so a goal smaller than a leaf is
+  still sought. A box read from the data says nothing of what lies outside it: there
+  the leaves are not halved.
 
 Every scale comes from the observation box and the transitions; the design's
 constants (:class:`MapSettings`) were chosen on TwoRooms and checked on five layouts

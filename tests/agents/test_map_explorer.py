@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import gymnasium
 import numpy as np
 import pytest
 from tests.agents._tasks import PointToGoal
@@ -41,6 +42,23 @@ def test_a_task_whose_state_integrates_a_velocity_gets_no_map_and_is_unchanged()
                   explore_map="on").learn(120)  # fmt: skip
     assert on.explorer.map is not None  # built whatever the test says
     assert not np.array_equal(on.buffer.arrays()[1], auto.buffer.arrays()[1])
+
+
+class _HalfBoundedPoint(PointToGoal):
+    """:class:`PointToGoal` whose observation space declares no upper bound."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.observation_space = gymnasium.spaces.Box(-1.0, np.inf, shape=(1,))
+
+
+def test_only_a_box_the_space_bounds_everywhere_is_a_declared_one() -> None:
+    """The map halves its cells only inside a box the space declares: with an infinite
+    bound its box is partly the data's range, which says nothing of what lies beyond."""
+    bounded = _point().learn(42).explorer.map
+    assert bounded is not None and bounded.declared_box
+    half = GPQAgent(_HalfBoundedPoint(), seed=0, gamma=0.9, max_bv=40).learn(200)  # type: ignore[arg-type]
+    assert half.explorer.map is not None and not half.explorer.map.declared_box
 
 
 def test_off_never_builds_a_map_and_bad_modes_are_refused() -> None:

@@ -364,3 +364,48 @@ def test_the_explore_plan_finds_a_goal_smaller_than_its_cells(seed: int) -> None
             break
         s = s2 if (n + 1) % 100 else rng.uniform(0, 1, 2)
     assert found is not None and m.halvings >= 1
+
+
+# ----------------------------------------------------------------- nearest tries
+def test_the_nearest_tries_match_a_brute_force_search() -> None:
+    rng = np.random.default_rng(4)
+    C = 0.1 * np.array([[1.0, 0.0], [0.8, 0.6], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+    S = np.round(rng.uniform(0, 1, (300, 2)), 2)  # repeated starts: ties in distance
+    k = rng.integers(0, 5, 300)
+    S2 = np.clip(S + C[k], 0, 1)
+    S2 = np.where((rng.random(300) < 0.3)[:, None], S, S2)  # some tries blocked
+    m = StateMap(np.zeros(2), np.ones(2), C, GAMMA, S, k, -np.ones(300), S2, np.zeros(300))
+    X = np.vstack([np.round(rng.uniform(0, 1, (40, 2)), 2), S[:20]])
+    near, blocked = m._nearest_tries(X)
+    unit = C / np.linalg.norm(C, axis=1, keepdims=True)
+    radius, is_blocked, scaled = m._typical.max(), m._blocked(), S / m.cells.side
+    assert near.any() and blocked.any() and not blocked.all()
+    for i, x in enumerate(X / m.cells.side):
+        for c in range(5):
+            tries = [j for j in range(300) if unit[c] @ unit[k[j]] >= 0.7
+                     and np.linalg.norm(scaled[j] - x) <= radius]  # fmt: skip
+            assert near[i, c] == bool(tries)
+            if tries:
+                d = min(np.linalg.norm(scaled[j] - x) for j in tries)
+                nearest = [j for j in tries if np.linalg.norm(scaled[j] - x) == d]
+                assert blocked[i, c] == any(is_blocked[j] for j in nearest)
+
+
+def test_the_greedy_policy_weighs_each_move_by_its_nearest_try() -> None:
+    """A line, moves of 0.1 right (0) and left (1): right moved from 0.30 and was blocked
+    from 0.52, left moved from 0.75. At 0.55 the nearest right try was blocked, so the
+    policy goes left whatever the plan says; at 0.33 no left try is within a move, so left
+    counts half its value above the least return (-10): -7 against right's -5."""
+    S, k = np.array([[0.30], [0.52], [0.75]]), np.array([0, 0, 1])
+    S2 = np.array([[0.40], [0.52], [0.65]])
+    m = StateMap(np.zeros(1), np.ones(1), np.array([[0.1], [-0.1]]), GAMMA, S, k,
+                 -np.ones(3), S2, np.zeros(3), settings=ONE_MOVE)  # fmt: skip
+    m.plan()
+    assert np.isclose(m.bounds()[0], -10.0)
+    for s, q, nearest, plain in (([0.55], [-1.0, -9.0], [False, True], [True, False]),
+                                 ([0.33], [-5.0, -4.0], [True, False], [False, True])):  # fmt: skip
+        m.Q_greedy[m.cells.locate(np.array([s]))[0]] = q
+        np.testing.assert_array_equal(m.greedy(np.array([s]))[0][0], nearest)
+        m.settings = MapSettings(side_scale=1.0, nearest_tries=False)
+        np.testing.assert_array_equal(m.greedy(np.array([s]))[0][0], plain)
+        m.settings = ONE_MOVE

@@ -35,6 +35,10 @@ Learning 21, 1995) and R-max's known-state MDP:
   predicted ones only towards a leaf that a tried move from the same leaf reached (no
   route through a wall nothing crossed) or in a leaf with none tried: an unexplored
   state is not better than a found goal.
+* **The greedy policy** (:meth:`StateMap.greedy`) weighs a move by Laplace's chance it
+  works from anywhere in its leaf, a failure as standing still for good; at its state,
+  a move whose nearest try (of a move like it, within a typical move) was blocked is
+  dropped, one with no try that near counts half its value above the least return.
 * **Halving.** In an observation box the space declares (finite bounds), when no
   termination has been seen and no unvisited leaf is in the explore plan's reach,
   every visited leaf is halved along its widest side and the plans solved again: the
@@ -55,6 +59,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from geoq._typing import FloatArray, IntArray
 from geoq.agents._map_model import LeafModel
@@ -82,6 +87,9 @@ class MapSettings:
     route_margin: float = 0.05
     """The exploit plan knows a route from a leaf valued above the lower bound by this
     fraction of the value range."""
+    nearest_tries: bool = True
+    """The greedy policy judges a move at a state by the nearest try of a move like it
+    (within one typical move) as well as by its leaf's plan (:meth:`StateMap.greedy`)."""
     tol: float = 1e-3
     """Value iteration stops when no value moves more than this."""
     max_sweeps: int = 2000
@@ -281,10 +289,7 @@ class StateMap:
         target = cells.locate(ends.reshape(-1, d)).reshape(-1, K)
         target = np.where(local | (every_count > 0)[None, :], target, -2)
         if blocked.any():  # a wall seen with one move is a wall for the moves like it
-            unit = self.candidates / np.maximum(
-                np.linalg.norm(self.candidates, axis=1, keepdims=True), 1e-12
-            )
-            alike = (unit @ unit.T) >= self.settings.blocked_cos  # [K, K]
+            alike = self._alike()
             seen = np.zeros((cells.n_leaves, K), dtype=np.int64)
             seen[self.leaf_s[blocked], self.k[blocked]] = 1
             wall = (seen @ alike.astype(np.int64)) > 0
@@ -387,14 +392,53 @@ class StateMap:
 
     def greedy(self, states: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         """The greedy policy's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
-        value range; :meth:`LeafModel.q_cautious`) at each state ``[n, d]`` and whether the
-        exploit plan knows a route from there ``[n]`` (no randomness; changes nothing)."""
+        value range; :meth:`LeafModel.q_cautious`, then :meth:`_nearest_tries`) at each
+        state ``[n, d]`` and whether the exploit plan knows a route from there ``[n]``
+        (no randomness; changes nothing)."""
         X = np.asarray(states, dtype=np.float64)
         leaves = self.cells.locate(X)
         q = self.Q_greedy[np.maximum(leaves, 0)]
         lo, hi = self.bounds()
         best = q >= q.max(axis=1, keepdims=True) - 1e-9 * (hi - lo)
+        if self.settings.nearest_tries:
+            near, blocked = self._nearest_tries(X)
+            q = np.where(near, q, lo + 0.5 * (q - lo))
+            q = np.where(near & blocked, -np.inf, q)
+            top = q.max(axis=1, keepdims=True)
+            best = np.where(np.isfinite(top), q >= top - 1e-9 * (hi - lo), best)
         return best, self.knows_route(leaves)
+
+    def _alike(self) -> np.ndarray:
+        """``[K, K]`` bool: candidate pairs at cosine ``>= blocked_cos`` (moves alike)."""
+        unit = self.candidates / np.maximum(
+            np.linalg.norm(self.candidates, axis=1, keepdims=True), 1e-12
+        )
+        return (unit @ unit.T) >= self.settings.blocked_cos
+
+    def _nearest_tries(self, X: FloatArray) -> tuple[np.ndarray, np.ndarray]:
+        """Per state ``[n, d]`` and candidate: whether a try of a candidate like it (cosine
+        >= ``blocked_cos``) started within one typical move ``[n, K]``, and whether the
+        nearest such try was blocked ``[n, K]`` (of tries equally near, a blocked one:
+        a blocked step starts the next try at the same point). A leaf that straddles a
+        wall holds tries from its open part only (docs/exploration.md)."""
+        if getattr(self, "_tree_size", -1) != self.n_transitions:
+            self._tree = cKDTree(self.S / self.cells.side)
+            self._tree_size = self.n_transitions
+        alike = self._alike()
+        radius = float(self._typical.max())
+        is_blocked = self._blocked()
+        n, K = X.shape[0], self.n_candidates
+        near, blocked = np.zeros((n, K), dtype=bool), np.zeros((n, K), dtype=bool)
+        for i, x in enumerate(X / self.cells.side):
+            idx = np.asarray(self._tree.query_ball_point(x, radius), dtype=np.int64)
+            if idx.size == 0:
+                continue
+            dist = np.linalg.norm(self._tree.data[idx] - x, axis=1)
+            idx = idx[np.lexsort((~is_blocked[idx], dist))]  # nearest first; at a tie, blocked
+            hit = alike[:, self.k[idx]]  # [K, m]
+            near[i] = hit.any(axis=1)
+            blocked[i] = near[i] & is_blocked[idx[np.argmax(hit, axis=1)]]
+        return near, blocked
 
     # ----------------------------------------------------------------- persistence
     _ARRAYS = ("S", "S2", "k", "r", "done", "leaf_s", "leaf_s2", "V_explore", "V_exploit",

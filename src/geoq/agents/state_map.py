@@ -421,19 +421,19 @@ class StateMap:
         nearest such try was blocked ``[n, K]`` (of tries equally near, a blocked one:
         a blocked step starts the next try at the same point). A leaf that straddles a
         wall holds tries from its open part only (docs/exploration.md)."""
-        if getattr(self, "_tree_size", -1) != self.n_transitions:
-            self._tree = cKDTree(self.S / self.cells.side)
-            self._tree_size = self.n_transitions
-        alike = self._alike()
-        radius = float(self._typical.max())
-        is_blocked = self._blocked()
+        cache = getattr(self, "_tries", None)  # predict calls this every step: built once
+        if cache is None or cache[0] != self.n_transitions:  # per map change (observe)
+            cache = (self.n_transitions, cKDTree(self.S / self.cells.side), self._blocked(),
+                     float(self._typical.max()), self._alike())  # fmt: skip
+            self._tries = cache
+        _, tree, is_blocked, radius, alike = cache
         n, K = X.shape[0], self.n_candidates
         near, blocked = np.zeros((n, K), dtype=bool), np.zeros((n, K), dtype=bool)
         for i, x in enumerate(X / self.cells.side):
-            idx = np.asarray(self._tree.query_ball_point(x, radius), dtype=np.int64)
+            idx = np.asarray(tree.query_ball_point(x, radius), dtype=np.int64)
             if idx.size == 0:
                 continue
-            dist = np.linalg.norm(self._tree.data[idx] - x, axis=1)
+            dist = np.linalg.norm(tree.data[idx] - x, axis=1)
             idx = idx[np.lexsort((~is_blocked[idx], dist))]  # nearest first; at a tie, blocked
             hit = alike[:, self.k[idx]]  # [K, m]
             near[i] = hit.any(axis=1)

@@ -15,11 +15,12 @@ Learner settings: the quick run's tuning (``results/demo/tuning.json`` from
 ``make demo``) if it exists, else the values that tuning gives at root seed 2012
 (:data:`QUICK_TUNED`), so the benchmark needs no 40 s tuning of its own.
 
-The columns are the paper scale's budgets (issue 31: ``geoq reproduce --scale paper``
-runs every row's cell type at each of them for 10 seeds), timed in CPU seconds (the
-machine is often shared); the last line is what one seed's cells of the slow types
-cost, times 10 seeds over 2 workers: about the paper run's Fig. 3 stage on 2 idle cores
-(its evaluation uses 500 pairs where this uses the quick scale's 150, a small part).
+The columns are the paper scale's budgets; each row runs at the budgets ``geoq reproduce
+--scale paper`` runs its cell type at for 10 seeds (``-``: not run there: the learners
+beyond the paper run at part of the grid, issue 31), timed in CPU seconds (the machine
+is often shared); the last line is what one seed's cells of the slow types cost, times
+10 seeds over 2 workers: about their share of the paper run's Fig. 3 stage on 2 idle
+cores (its evaluation uses 500 pairs where this uses the quick scale's 150, a small part).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ import numpy as np
 
 from geoq._threads import one_blas_thread
 from geoq.experiments.config import config_for_scale, variant_learner
-from geoq.experiments.fig3 import TruthCell, score_learner, truth_cell
+from geoq.experiments.fig3 import TruthCell, refits_per_rollout, score_learner, truth_cell
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.gp import NumericalWarning
 from geoq.learners import QGPConfig
@@ -50,8 +51,8 @@ CELL_TYPES = (
     ("pd_novelty", "nearest"),
     ("pd_novelty", "interpolated"),
 )
-#: The paper scale's budgets.
-BUDGETS = config_for_scale("paper").budgets
+#: The paper scale, whose budgets are the columns.
+PAPER = config_for_scale("paper")
 TUNING_FILE = Path("results/demo/tuning.json")
 _SHARED = {"amplitude": 3.7870371398361082, "noise": 0.17506494876403583}
 #: The quick scale's tuned settings at root seed 2012 (``tuning.json``), per kernel.
@@ -84,7 +85,7 @@ def tuned_learners() -> tuple[dict[str, QGPConfig], str]:
 def main(quick: bool = False) -> None:
     """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
     cfg = config_for_scale("quick")
-    budgets = BUDGETS
+    budgets = PAPER.budgets
     if quick:
         cfg = cfg.replace(train_rollouts=1, train_steps=40, eval_pairs=10, mc_rollouts=4)
         budgets = (10,)
@@ -109,18 +110,24 @@ def main(quick: bool = False) -> None:
             learner = learners[kernel]
             if variant != "tuned":
                 learner = variant_learner(variant, learner)
-            times = []
+            runs = set(PAPER.budgets_of(kernel, variant)) if not quick else set(budgets)
+            times: list[float | None] = []
             for budget in budgets:
+                if budget not in runs:
+                    times.append(None)
+                    continue
                 config = learner.replace(kernel=kernel, max_bv=budget)
                 start = time.process_time()
                 score_learner(
-                    config, rollouts, *arrays[:4], td=arrays[4], refit_episode=variant == "tuned"
-                )
+                    config, rollouts, *arrays[:4], td=arrays[4],
+                    refit_episode=refits_per_rollout(kernel, variant),
+                )  # fmt: skip
                 times.append(time.process_time() - start)
+            total = sum(t for t in times if t is not None)
             if kernel == "resistance" or variant == "pd_novelty":
-                slow += sum(times)
-            cells = "".join(f"{t:7.2f}" for t in times)
-            print(f"  {variant:>10} {kernel:>12} {cells}{sum(times):8.1f}")
+                slow += total
+            cells = "".join("      -" if t is None else f"{t:7.2f}" for t in times)
+            print(f"  {variant:>10} {kernel:>12} {cells}{total:8.1f}")
     print(
         f"  resistance and pd_novelty cells, one seed: {slow:.1f} s CPU; x 10 seeds / 2 workers:"
         f" {5 * slow:.0f} s of the paper run's Fig. 3 stage"

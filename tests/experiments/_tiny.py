@@ -9,6 +9,7 @@ TINY = ReproConfig(
     scale="tiny",
     seeds=2,
     budgets=(5, 15),
+    beyond_paper_budgets=(15,),  # the resistance and pd_novelty cells at part of the grid
     train_rollouts=2,
     train_steps=60,
     graph_rollouts=2,

@@ -86,10 +86,10 @@ def test_killed_run_resumes_to_identical_files(tmp_path: Path, tiny_json: Path) 
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
     finished = {p.name: p.read_bytes() for p in cells.glob("*.json")}
-    learners = len(TINY.kernels) + len(TINY.variants) * len(
-        set(VARIANT_KERNELS) & set(TINY.kernels)
+    per_seed = sum(len(TINY.budgets_of(k)) for k in TINY.kernels) + sum(
+        len(TINY.budgets_of(k, v)) for v in TINY.variants for k in VARIANT_KERNELS
     )
-    n_cells = learners * TINY.seeds * len(TINY.budgets)
+    n_cells = per_seed * TINY.seeds
     assert 3 <= len(finished) < n_cells, "the kill must land mid-sweep"
     assert not (out / "fig3.csv").exists()
 

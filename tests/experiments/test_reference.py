@@ -47,6 +47,12 @@ def test_quick_runs_every_paper_learner_and_paper_scale_every_learner():
     quick, paper = config_for_scale("quick"), config_for_scale("paper")
     assert set(PAPER_KERNELS) <= set(quick.kernels) and "faithful" in quick.variants
     assert set(paper.kernels) == set(KERNEL_NAMES) and set(paper.variants) == set(VARIANTS)
+    # The learners beyond the paper at part of the grid: its span and its lowest third.
+    part = paper.budgets_of("resistance")
+    assert part == paper.budgets_of("nearest", "pd_novelty") and len(part) < len(paper.budgets)
+    assert set(paper.budgets[: len(paper.budgets) // 3]) <= set(part)
+    assert (part[0], part[-1]) == (paper.budgets[0], paper.budgets[-1])
+    assert paper.budgets_of("nearest", "faithful") == paper.budgets == paper.budgets_of("nearest")
 
 
 def test_reduced_reproduction_matches_the_reference(tmp_path):

@@ -127,3 +127,30 @@ def test_variant_claims_are_undetermined_when_the_variant_diverged():
     )  # MSE claims undetermined; the variance claim still tested
     refit = [ln for ln in text.splitlines() if "| refit | `nearest` |" in ln]
     assert refit and not any("undetermined" in ln for ln in refit)
+
+
+def test_a_kernel_run_at_part_of_the_grid_is_tested_at_its_own_budgets():
+    from geoq.experiments.report import _table
+
+    grid = [5, 10, 20, 35, 50, 75, 100, 150, 200]  # lowest third: 5, 10, 20
+    mse_euc = dict(zip(grid, [4.0, 3.0, 2.0, 1.5, 1.0, 0.8, 0.5, 0.5, 0.5], strict=True))
+    mse_geo = dict(zip(grid, [2.0, 3.5, 1.0, 1.5, 1.3, 0.8, 0.5, 0.5, 0.5], strict=True))
+    nv = dict.fromkeys(grid, 0.2)
+    rows = _rows(mse_geo, mse_euc, {b: 0.3 for b in grid}, nv)
+    part = [10, 20, 50, 200]
+    rows += [r | {"kernel": "resistance"} for r in rows if r["kernel"] == "nearest"]
+    rows = [r for r in rows if r["kernel"] != "resistance" or r["max_bv"] in part]
+    verdicts = assess_claims(rows)
+    full, sub = verdicts["nearest"], verdicts["resistance"]
+    # The same paired differences where both ran; "small" is the grid's lowest third.
+    assert list(full[0]["evidence"]) == [5, 10, 20]
+    assert list(sub[0]["evidence"]) == [10, 20]
+    for b in (10, 20):
+        assert sub[0]["evidence"][b] == full[0]["evidence"][b]
+    assert full[0]["verdict"] == "contradicted" and sub[0]["verdict"] == "contradicted"
+    assert full[3]["worse_at"] == [10, 50] and sub[3]["worse_at"] == [10, 50]
+    assert sub[1]["threshold"] == 200 and full[1]["threshold"] == 75
+    assert sub[2]["verdict"] == "supported" and list(sub[2]["evidence"]) == part
+    table = _table(rows, "mse")
+    assert table[0] == "| max_bv | euclidean | nearest | resistance |"
+    assert table[2 + grid.index(5)].endswith("| - |") and "| - |" not in table[2 + grid.index(10)]

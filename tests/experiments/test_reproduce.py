@@ -62,7 +62,12 @@ def test_every_file_is_written(run_dir):
     assert {(r["variant"], r["kernel"]) for r in variants} == {
         (v, k) for v in ("faithful", "pd_novelty") for k in ("nearest", "interpolated")
     }
-    assert len(variants) == 2 * 2 * 2 * 2  # variants x kernels x budgets x seeds
+    assert len(variants) == (2 + 1) * 2 * 2  # (faithful's budgets + pd_novelty's) x kernels x seeds
+    assert {int(r["max_bv"]) for r in variants if r["variant"] == "pd_novelty"} == {15}
+    assert {int(r["max_bv"]) for r in every if r["kernel"] == "resistance"} == {15}
+    # The per-roll-out refit learner: the paper's kernels only.
+    assert all((r["mse_refit_episode"] == "") == (r["kernel"] == "resistance") for r in every)
+    assert "(the learners beyond the paper: [15])" in report
     for r in variants:
         assert int(r["n_bv"]) <= int(r["max_bv"]) and float(r["mse_refit"]) >= 0
     assert "### Do the paper's claims change?" in report

@@ -54,7 +54,7 @@ __all__ = [
 REL_TOL = 0.02
 #: ... or by this fraction of the reference's 95% half-width, whichever is looser.
 HALF_WIDTH_FRACTION = 0.1
-#: The Fig. 3 columns compared (``mse_refit_episode``: tuned learners only).
+#: The Fig. 3 columns compared (``mse_refit_episode``: the paper's tuned kernels only).
 MSE_COLUMNS = ("mse", "mse_refit", "mse_refit_episode")
 _FORMAT = 1
 

@@ -46,8 +46,11 @@ def _table(rows: Sequence[Mapping[str, Any]], column: str, log: bool = True) -> 
         cells = []
         for k in kernels:
             values = _by(rows, k, b, column).values()
+            if not values:
+                cells.append("-")  # not run at this budget (the learners beyond the paper)
+                continue
             iv = interval(values)
-            cells.append(str(iv) if iv.n or not values else "not finite")
+            cells.append(str(iv) if iv.n else "not finite")
         lines.append(f"| {b} | " + " | ".join(cells) + " |")
     return lines
 
@@ -201,7 +204,13 @@ def render_report(
         "# geoq: reproduction of Fig. 1-3 (ESANN 2012)",
         "",
         f"geoq {version}, scale `{config['scale']}`, root seed {config['root_seed']}, "
-        f"{n_seeds} seeds, budgets {config['budgets']}, wall time {wall_seconds:.0f} s.",
+        f"{n_seeds} seeds, budgets {config['budgets']}"
+        + (
+            f" (the learners beyond the paper: {config['beyond_paper_budgets']})"
+            if config.get("beyond_paper_budgets")
+            else ""
+        )
+        + f", wall time {wall_seconds:.0f} s.",
         "MSEs and normalised variances are summarised over seeds by their geometric mean "
         "and a 95% Student-t interval of their logarithms mapped back (`[g / f, g * f]`, never "
         "below 0; exact for lognormal values); differences are arithmetic, paired by seed "

@@ -154,7 +154,10 @@ def reproduce(
         )
 
     cells = [
-        budget(k, b, tc, "tuned") for tc in truth_cells for k in cfg.kernels for b in cfg.budgets
+        budget(k, b, tc, "tuned")
+        for tc in truth_cells
+        for k in cfg.kernels
+        for b in cfg.budgets_of(k)
     ]
     cells += [
         budget(k, b, tc, v)
@@ -162,7 +165,7 @@ def reproduce(
         for tc in truth_cells
         for k in VARIANT_KERNELS
         if k in cfg.kernels
-        for b in cfg.budgets
+        for b in cfg.budgets_of(k, v)
     ]
     # Long cells first (the rows are sorted below; their content does not depend on it).
     ordered = longest_first(cells)

@@ -84,6 +84,11 @@ def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
         config_with_overrides(SCALES["quick"], {"seedz": 2})
     with pytest.raises(ValueError, match="budgets"):
         config_with_overrides(SCALES["quick"], {"budgets": [0]})
+    # The paper preset's sub-grid must follow a changed grid, and the error says how.
+    with pytest.raises(ValueError, match=r"subset of budgets \(\[\] for every budget\)"):
+        config_with_overrides(SCALES["paper"], {"budgets": [5, 10]})
+    cfg = config_with_overrides(SCALES["paper"], {"budgets": [5, 10], "beyond_paper_budgets": []})
+    assert cfg.budgets_of("resistance") == (5, 10)
 
 
 def test_variant_learners_change_only_what_they_name():

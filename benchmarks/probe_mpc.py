@@ -13,13 +13,16 @@ by the data. Away from the data the reward's prior is the least reward seen and 
 termination's is 1 (pessimistic); ``--unknown K`` also halts a predicted roll-out at a
 state-action farther from every transition than ``K`` x the 99th percentile of the
 data's nearest-neighbour distances (MOReL's unknown-state detector, Kidambi et al.
-2020). Actions: the cross-entropy method over action sequences of ``--horizon`` steps
-(64 samples, 3 iterations, 8 elites, warm-started from the last plan), scored by the
-return the models predict, weighted by the predicted survival. The first 200 steps act
+2020); ``--local K`` adds back each model's residuals at the ``K`` nearest transitions
+(Nadaraya-Watson at that spacing, shrunk to 0 where few are near): what the smooth
+models miss at rare, non-smooth events (a rail, a joint's stop). Actions: the
+cross-entropy method over action sequences of ``--horizon`` steps (64 samples, 3
+iterations, 8 elites, warm-started from the last plan), scored by the return the models
+predict, weighted by the predicted survival. The first 200 steps act
 uniformly at random. Nothing is set per task.
 
     python benchmarks/probe_mpc.py --env InvertedPendulum-v5 --seed 0 --steps 3000 \\
-        --every 1000 --episodes 3 --unknown 2 [--horizon 50]
+        --every 1000 --episodes 3 --unknown 2 [--horizon 50] [--local 10]
 
 Each checkpoint prints the mean greedy return of ``--episodes`` episodes and each
 episode's last observation (its first four entries). Needs the ``mujoco`` extra.
@@ -47,6 +50,8 @@ class Settings:
     horizon: int = 25
     unknown: float = 0.0
     """Halt at ``unknown`` x the data's spacing (0: never)."""
+    local: int = 0
+    """Correct each model by its residuals at the ``local`` nearest transitions (0: never)."""
     samples: int = 64
     iterations: int = 3
     elites: int = 8
@@ -84,26 +89,44 @@ class OutputGP:
 class Models:
     """Dynamics, reward and termination of the transitions ``(S, A, R, S2, D)``."""
 
-    def __init__(self, S, A, R, S2, D, rng, unknown):
+    def __init__(self, S, A, R, S2, D, rng, unknown, local=0):
         X = np.hstack([S, A])
         self.x_mean, self.x_std = X.mean(0), X.std(0) + 1e-8
         Xs = (X - self.x_mean) / self.x_std
         self.dynamics = [OutputGP(Xs, (S2 - S)[:, j], rng) for j in range(S.shape[1])]
         self.reward = OutputGP(Xs, R, rng, prior_mean=R.min())
         self.done = OutputGP(Xs, D.astype(float), rng, prior_mean=1.0) if D.any() else None
-        self.tree, self.r_min = (cKDTree(Xs) if unknown > 0 else None), float(R.min())
+        self.unknown, self.local, self.r_min = unknown, local, float(R.min())
+        self.tree = cKDTree(Xs) if unknown > 0 or local > 0 else None
         if self.tree is not None:
             probe = Xs[rng.choice(len(Xs), min(500, len(Xs)), replace=False)]
-            self.halt = unknown * float(np.quantile(self.tree.query(probe, k=2)[0][:, 1], 0.99))
+            self.spacing = float(np.quantile(self.tree.query(probe, k=2)[0][:, 1], 0.99))
+        if local > 0:
+            # What the smooth models miss at each transition (rare, non-smooth events).
+            targets = np.column_stack([S2 - S, R, D.astype(float)])
+            self.residuals = targets - self._smooth(Xs)
+
+    def _smooth(self, Xs):
+        out = [g(Xs) for g in self.dynamics] + [self.reward(Xs)]
+        out.append(np.zeros(len(Xs)) if self.done is None else self.done(Xs))
+        return np.column_stack(out)
 
     def step(self, S, A):
         """Predicted next states, rewards and termination probabilities of ``[P]`` pairs."""
         Xs = (np.hstack([S, A]) - self.x_mean) / self.x_std
-        S2 = S + np.stack([g(Xs) for g in self.dynamics], axis=1)
-        r = self.reward(Xs)
-        p = np.zeros(len(S)) if self.done is None else np.clip(self.done(Xs), 0.0, 1.0)
+        out = self._smooth(Xs)
         if self.tree is not None:
-            unknown = self.tree.query(Xs, k=1)[0] > self.halt
+            dist, idx = self.tree.query(Xs, k=max(1, self.local))
+            dist, idx = dist.reshape(len(Xs), -1), idx.reshape(len(Xs), -1)
+            if self.local > 0:
+                # Nadaraya-Watson on the residuals at the data's own spacing, shrunk to 0
+                # where few transitions are that near.
+                w = np.exp(-0.5 * (dist / self.spacing) ** 2)
+                out += np.einsum("pk,pkj->pj", w, self.residuals[idx]) / (w.sum(1) + 1.0)[:, None]
+        d = S.shape[1]
+        S2, r, p = S + out[:, :d], out[:, d], np.clip(out[:, d + 1], 0.0, 1.0)
+        if self.unknown > 0:
+            unknown = dist[:, 0] > self.unknown * self.spacing
             r, p = np.where(unknown, self.r_min, r), np.where(unknown, 1.0, p)
         return S2, r, p
 
@@ -154,8 +177,9 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--unknown", type=float, default=0.0)
     ap.add_argument("--horizon", type=int, default=25)
+    ap.add_argument("--local", type=int, default=0)
     a = ap.parse_args()
-    cfg = Settings(horizon=a.horizon, unknown=a.unknown)
+    cfg = Settings(horizon=a.horizon, unknown=a.unknown, local=a.local)
     env = gym.make(a.env)
     rng = np.random.default_rng(a.seed)
     low, high = env.action_space.low.astype(float), env.action_space.high.astype(float)
@@ -175,7 +199,8 @@ def main() -> None:
             (s, _), plan = env.reset(), None
         if step >= next_fit:
             arrays = [np.asarray(c, dtype=float) for c in data[:4]]
-            models = Models(*arrays, np.asarray(data[4], dtype=bool), rng, cfg.unknown)
+            done = np.asarray(data[4], dtype=bool)
+            models = Models(*arrays, done, rng, cfg.unknown, cfg.local)
             next_fit = min(2 * step, step + 1000)
         if step % a.every == 0 and models is not None:
             ret, ends = evaluate(a.env, models, a.seed, a.episodes, cfg)

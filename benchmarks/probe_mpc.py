@@ -15,14 +15,15 @@ state-action farther from every transition than ``K`` x the 99th percentile of t
 data's nearest-neighbour distances (MOReL's unknown-state detector, Kidambi et al.
 2020); ``--local K`` adds back each model's residuals at the ``K`` nearest transitions
 (Nadaraya-Watson at that spacing, shrunk to 0 where few are near): what the smooth
-models miss at rare, non-smooth events (a rail, a joint's stop). Actions: the
+models miss at rare, non-smooth events (a rail, a joint's stop); ``--value`` scores a
+plan's last state by a GP of the discounted returns-to-go seen from states. Actions: the
 cross-entropy method over action sequences of ``--horizon`` steps (64 samples, 3
 iterations, 8 elites, warm-started from the last plan), scored by the return the models
 predict, weighted by the predicted survival. The first 200 steps act
 uniformly at random. Nothing is set per task.
 
     python benchmarks/probe_mpc.py --env InvertedPendulum-v5 --seed 0 --steps 3000 \\
-        --every 1000 --episodes 3 --unknown 2 [--horizon 50] [--local 10]
+        --every 1000 --episodes 3 --unknown 2 [--horizon 50] [--local 10] [--value]
 
 Each checkpoint prints the mean greedy return of ``--episodes`` episodes and each
 episode's last observation (its first four entries). Needs the ``mujoco`` extra.
@@ -52,6 +53,8 @@ class Settings:
     """Halt at ``unknown`` x the data's spacing (0: never)."""
     local: int = 0
     """Correct each model by its residuals at the ``local`` nearest transitions (0: never)."""
+    value: bool = False
+    """Score a plan's last state by a GP of the discounted returns-to-go seen from states."""
     samples: int = 64
     iterations: int = 3
     elites: int = 8
@@ -89,7 +92,7 @@ class OutputGP:
 class Models:
     """Dynamics, reward and termination of the transitions ``(S, A, R, S2, D)``."""
 
-    def __init__(self, S, A, R, S2, D, rng, unknown, local=0):
+    def __init__(self, S, A, R, S2, D, rng, unknown, local=0, ends=None, gamma=0.99):
         X = np.hstack([S, A])
         self.x_mean, self.x_std = X.mean(0), X.std(0) + 1e-8
         Xs = (X - self.x_mean) / self.x_std
@@ -101,6 +104,15 @@ class Models:
         if self.tree is not None:
             probe = Xs[rng.choice(len(Xs), min(500, len(Xs)), replace=False)]
             self.spacing = float(np.quantile(self.tree.query(probe, k=2)[0][:, 1], 0.99))
+        self.value = None
+        if ends is not None:
+            # Monte-Carlo returns-to-go within each episode (no bootstrap at its end).
+            G, later = np.empty(len(R)), 0.0
+            for i in range(len(R) - 1, -1, -1):
+                later = R[i] + (0.0 if ends[i] or i == len(R) - 1 else gamma * later)
+                G[i] = later
+            d = S.shape[1]
+            self.value = OutputGP(Xs[:, :d], G, rng, prior_mean=G.min())
         if local > 0:
             # What the smooth models miss at each transition (rare, non-smooth events).
             targets = np.column_stack([S2 - S, R, D.astype(float)])
@@ -145,6 +157,9 @@ def plan_action(models, s, low, high, rng, plan, cfg):
             S, r, p = models.step(S, A[:, t])
             ret += cfg.gamma**t * alive * r
             alive *= 1.0 - p
+        if models.value is not None:
+            d = len(s)
+            ret += cfg.gamma**H * alive * models.value((S - models.x_mean[:d]) / models.x_std[:d])
         best = U[np.argsort(-ret)[: cfg.elites]]
         mean, std = best.mean(0), best.std(0) + 0.05
     return low + (mean[0] + 1.0) * 0.5 * (high - low), np.vstack([mean[1:], mean[-1:]])
@@ -178,12 +193,13 @@ def main() -> None:
     ap.add_argument("--unknown", type=float, default=0.0)
     ap.add_argument("--horizon", type=int, default=25)
     ap.add_argument("--local", type=int, default=0)
+    ap.add_argument("--value", action="store_true")
     a = ap.parse_args()
-    cfg = Settings(horizon=a.horizon, unknown=a.unknown, local=a.local)
+    cfg = Settings(horizon=a.horizon, unknown=a.unknown, local=a.local, value=a.value)
     env = gym.make(a.env)
     rng = np.random.default_rng(a.seed)
     low, high = env.action_space.low.astype(float), env.action_space.high.astype(float)
-    data: list[list] = [[], [], [], [], []]
+    data: list[list] = [[], [], [], [], [], []]
     s, _ = env.reset(seed=a.seed)
     models, plan, next_fit, start = None, None, 200, time.time()
     for step in range(1, a.steps + 1):
@@ -192,7 +208,7 @@ def main() -> None:
         else:
             act, plan = plan_action(models, s.astype(float), low, high, rng, plan, cfg)
         s2, r, term, trunc, _ = env.step(act)
-        for column, value in zip(data, (s, act, r, s2, term), strict=True):
+        for column, value in zip(data, (s, act, r, s2, term, term or trunc), strict=True):
             column.append(value)
         s = s2
         if term or trunc:
@@ -200,7 +216,8 @@ def main() -> None:
         if step >= next_fit:
             arrays = [np.asarray(c, dtype=float) for c in data[:4]]
             done = np.asarray(data[4], dtype=bool)
-            models = Models(*arrays, done, rng, cfg.unknown, cfg.local)
+            ends = np.asarray(data[5], dtype=bool) if cfg.value else None
+            models = Models(*arrays, done, rng, cfg.unknown, cfg.local, ends, cfg.gamma)
             next_fit = min(2 * step, step + 1000)
         if step % a.every == 0 and models is not None:
             ret, ends = evaluate(a.env, models, a.seed, a.episodes, cfg)

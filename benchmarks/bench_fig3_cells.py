@@ -18,9 +18,12 @@ Learner settings: the quick run's tuning (``results/demo/tuning.json`` from
 The columns are the paper scale's budgets; each row runs at the budgets ``geoq reproduce
 --scale paper`` runs its cell type at for 10 seeds (``-``: not run there: the learners
 beyond the paper run at part of the grid, issue 31), timed in CPU seconds (the machine
-is often shared); the last line is what one seed's cells of the slow types cost, times
-10 seeds over 2 workers: about their share of the paper run's Fig. 3 stage on 2 idle
-cores (its evaluation uses 500 pairs where this uses the quick scale's 150, a small part).
+is often shared). A row that the paper run computes differently since issue 31 is timed
+twice, ``before`` (every budget, the per-roll-out refit learner for every tuned kernel)
+and ``now``. The last line is what one seed's cells of the slow types cost both ways,
+their ratio in this run, and times 10 seeds over 2 workers: about their share of the
+paper run's Fig. 3 stage on 2 idle cores (its evaluation uses 500 pairs where this uses
+the quick scale's 150, a small part).
 """
 
 from __future__ import annotations
@@ -102,35 +105,46 @@ def main(quick: bool = False) -> None:
     learners, source = tuned_learners()
     print(f"one Fig. 3 cell (seed 0, quick scale, one BLAS thread, CPU s); settings: {source}")
     header = "".join(f"{b:>7}" for b in budgets)
-    print(f"  {'variant':>10} {'kernel':>12} {header}{'sum':>8}")
-    slow = 0.0
+    print(f"  {'variant':>10} {'kernel':>12} {'':>6} {header}{'sum':>8}")
+    slow_before = slow_now = 0.0
     with warnings.catch_warnings(), one_blas_thread():
         warnings.simplefilter("ignore", NumericalWarning)
         for variant, kernel in CELL_TYPES:
             learner = learners[kernel]
             if variant != "tuned":
                 learner = variant_learner(variant, learner)
-            runs = set(PAPER.budgets_of(kernel, variant)) if not quick else set(budgets)
-            times: list[float | None] = []
-            for budget in budgets:
-                if budget not in runs:
-                    times.append(None)
-                    continue
-                config = learner.replace(kernel=kernel, max_bv=budget)
+
+            def timed(budget: int, episode: bool) -> float:
+                config = learner.replace(kernel=kernel, max_bv=budget)  # noqa: B023
                 start = time.process_time()
-                score_learner(
-                    config, rollouts, *arrays[:4], td=arrays[4],
-                    refit_episode=refits_per_rollout(kernel, variant),
-                )  # fmt: skip
-                times.append(time.process_time() - start)
-            total = sum(t for t in times if t is not None)
+                score_learner(config, rollouts, *arrays[:4], td=arrays[4], refit_episode=episode)
+                return time.process_time() - start
+
+            # Before issue 31's sub-grid: every budget, the per-roll-out refit for every
+            # tuned learner. Now: the paper run's budgets and rule.
+            before = [timed(b, variant == "tuned") for b in budgets]
+            runs = set(PAPER.budgets_of(kernel, variant)) if not quick else set(budgets)
+            same_rule = refits_per_rollout(kernel, variant) == (variant == "tuned")
+            now = [
+                None
+                if b not in runs
+                else (t if same_rule else timed(b, refits_per_rollout(kernel, variant)))
+                for b, t in zip(budgets, before, strict=True)
+            ]
+            changed = not same_rule or None in now
+            rows = [("before", before), ("now", now)] if changed else [("", before)]
+            for label, times in rows:
+                cells = "".join("      -" if t is None else f"{t:7.2f}" for t in times)
+                total = sum(t for t in times if t is not None)
+                print(f"  {variant:>10} {kernel:>12} {label:>6} {cells}{total:8.1f}")
             if kernel == "resistance" or variant == "pd_novelty":
-                slow += total
-            cells = "".join("      -" if t is None else f"{t:7.2f}" for t in times)
-            print(f"  {variant:>10} {kernel:>12} {cells}{total:8.1f}")
+                slow_before += sum(before)
+                slow_now += sum(t for t in now if t is not None)
     print(
-        f"  resistance and pd_novelty cells, one seed: {slow:.1f} s CPU; x 10 seeds / 2 workers:"
-        f" {5 * slow:.0f} s of the paper run's Fig. 3 stage"
+        f"  resistance and pd_novelty cells, one seed, CPU s: {slow_now:.1f} as the paper run "
+        f"computes them now, {slow_before:.1f} on every budget as before issue 31's sub-grid "
+        f"(ratio {slow_now / slow_before:.2f}); x 10 seeds / 2 workers: {5 * slow_now:.0f} s "
+        f"against {5 * slow_before:.0f} s of the paper run's Fig. 3 stage"
     )
 
 

@@ -45,6 +45,28 @@ class PointToGoal(gymnasium.Env[np.ndarray, np.ndarray]):
         return np.array([self._x]), -1.0, terminated, truncated, info
 
 
+class PointToGoalWithDistractors(PointToGoal):
+    """:class:`PointToGoal` observed with ``extra`` more coordinates in ``[-1, 1]``, drawn
+    at each reset and constant within an episode: the same task in ``1 + extra`` inputs."""
+
+    def __init__(self, extra: int = 4) -> None:
+        super().__init__()
+        self.extra = extra
+        self.observation_space = spaces.Box(-1.0, 1.0, shape=(1 + extra,), dtype=np.float64)
+        self._distractors = np.zeros(extra)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, info = super().reset(seed=seed, options=options)
+        self._distractors = self.np_random.uniform(-1.0, 1.0, self.extra)
+        return np.concatenate([obs, self._distractors]), info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = super().step(action)
+        return np.concatenate([obs, self._distractors]), reward, terminated, truncated, info
+
+
 def steps_to_goal(policy: Any, start: float, limit: int = 40) -> int:
     """Steps a policy ``obs -> action`` needs from ``start`` (``limit + 1`` if it never arrives)."""
     env = PointToGoal()

@@ -6,9 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.agents._tasks import PointToGoal
+from tests.agents._tasks import PointToGoal, PointToGoalWithDistractors
 
 from geoq.agents import GPQAgent, GPQConfig
+from geoq.agents.config import rule_coverage
 from geoq.agents.replay import GraphReplay, NoReplay, UniformReplay
 from geoq.agents.state import LearningState, TrainingLog
 from geoq.kernels import GeodesicKernel, ResistanceKernel, SquaredExponential, make_kernel
@@ -25,6 +26,57 @@ def test_max_bv_has_one_rule_in_the_config_the_agent_and_the_gp() -> None:
     assert GPQConfig().for_dims(1, 1).max_bv == 400
     assert GPQConfig().for_dims(3, 2).max_bv == 800
     assert GPQAgent(PointToGoal()).config.max_bv == 400  # resolved once, stored once
+
+
+def test_rule_coverage_counts_how_often_the_basis_tiles_the_box() -> None:
+    # Four squares of half-side 0.5 tile [-1, 1]^2 exactly; a length-scale past the
+    # box's half-range covers it whole along that input.
+    assert rule_coverage(np.array([0.5, 0.5]), 4) == 1.0
+    assert rule_coverage(np.array([3.0, 0.5]), 4) == 2.0
+    assert rule_coverage(np.array([0.15, 0.15, 0.6]), 400) == pytest.approx(5.4)
+
+
+@pytest.mark.parametrize(
+    ("obs_dim", "action_dim", "hyperparameters", "prior"),
+    [
+        (1, 1, "rule", "optimistic"),  # PointToGoal
+        (2, 1, "rule", "optimistic"),  # the swing-up, the mountain car
+        (3, 1, "rule", "optimistic"),  # Pendulum-v1: coverage 1.6
+        (2, 2, "rule", "optimistic"),  # TwoRooms
+        (4, 1, "evidence", "empirical"),  # InvertedPendulum-v5: coverage 0.24
+        (10, 2, "evidence", "empirical"),  # Reacher-v5
+    ],
+)
+def test_auto_follows_whether_the_rule_covers_the_inputs(
+    obs_dim: int, action_dim: int, hyperparameters: str, prior: str
+) -> None:
+    c = GPQConfig().for_dims(obs_dim, action_dim)
+    assert (c.hyperparameters, c.prior) == (hyperparameters, prior)
+    # A smaller budget, chosen for speed, does not change how the agent learns.
+    small = GPQConfig(max_bv=10).for_dims(obs_dim, action_dim)
+    assert (small.hyperparameters, small.prior) == (hyperparameters, prior)
+    # Values given are kept.
+    given = GPQConfig(hyperparameters="rule", prior="midrange").for_dims(obs_dim, action_dim)
+    assert (given.hyperparameters, given.prior) == ("rule", "midrange")
+
+
+def test_auto_with_long_lengthscales_or_a_graph_kernel_keeps_the_rule() -> None:
+    long = GPQConfig(lengthscale=0.6).for_dims(4, 1)  # 800 x 0.6^5 = 62
+    assert (long.hyperparameters, long.prior) == ("rule", "optimistic")
+    graph = GPQConfig(kernel="nearest").for_dims(10, 2)  # no length-scale per input to fit
+    assert (graph.hyperparameters, graph.prior) == ("rule", "empirical")
+
+
+def test_an_agent_resolves_auto_once_and_saves_the_choice(tmp_path: Path) -> None:
+    env = PointToGoalWithDistractors(extra=4)  # 5 + 1 inputs: the rule cannot cover them
+    agent = GPQAgent(env, seed=0, max_bv=60, gamma=0.9)
+    assert (agent.config.hyperparameters, agent.config.prior) == ("evidence", "empirical")
+    agent.learn(300)
+    assert agent.log.evidence_fits and len(agent.state.fitted_lengthscale) == 6
+    agent.save(tmp_path / "agent.npz")
+    loaded = GPQAgent.load(tmp_path / "agent.npz", env=PointToGoalWithDistractors(extra=4))
+    assert loaded.config == agent.config
+    assert GPQAgent(PointToGoal(), max_bv=60).config.hyperparameters == "rule"
 
 
 def test_numpy_scalars_become_python_numbers_and_the_agent_saves(tmp_path: Path) -> None:

@@ -31,6 +31,7 @@ __all__ = [
     "check_learn_arguments",
     "check_seed",
     "default_max_bv",
+    "rule_coverage",
 ]
 
 #: Largest ``beta`` and ``action_noise``: past a million posterior standard deviations UCB
@@ -45,12 +46,12 @@ MAX_CANDIDATES = 16_384
 BUDGET_BASE = 400
 BUDGET_BASE_DIM = 3
 
-Prior = Literal["midrange", "optimistic", "empirical"]
-PRIORS: tuple[str, ...] = ("midrange", "optimistic", "empirical")
+Prior = Literal["auto", "midrange", "optimistic", "empirical"]
+PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
-Hyperparameters = Literal["rule", "evidence"]
-HYPERPARAMETERS: tuple[str, ...] = ("rule", "evidence")
+Hyperparameters = Literal["auto", "rule", "evidence"]
+HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,7 @@ class GPQConfig:
     """Length-scale of each action dimension when ``lengthscale`` is None. Longer than
     the states': one step's action moves the next state by ``dt``-small amounts, so
     Q varies slowly along the action."""
-    hyperparameters: Hyperparameters = "rule"
+    hyperparameters: Hyperparameters = "auto"
     """Where the squared-exponential length-scales come from. ``rule``: ``lengthscale``, or
     ``state_lengthscale`` / ``action_lengthscale``, fixed. ``evidence`` (``euclidean``
     only): re-fitted by maximum exact-GP evidence
@@ -104,9 +105,14 @@ class GPQConfig:
     transitions. The rule's values are the first start. Only the length-scales are
     taken: ``amplitude`` and ``noise`` define the prior over values never seen (the
     optimism that drives exploration), which the evidence of the visited ones does
-    not inform. Each fit is recorded in ``GPQAgent.log.evidence_fits``. The default is
-    ``rule``: on the swing-up the evidence's length-scales learned worse
-    (docs/design-notes.md)."""
+    not inform. Each fit is recorded in ``GPQAgent.log.evidence_fits``. ``auto`` (the
+    default, resolved by :meth:`for_dims`): ``rule`` where the rule's length-scales
+    let the dimension's default budget cover the input box (:func:`rule_coverage`
+    >= 1: the swing-up, the mountain car, ``Pendulum-v1``, TwoRooms), ``evidence``
+    where they cannot (``euclidean`` only; 4 states and 1 action, 3 and 2, and
+    beyond: Gymnasium's MuJoCo tasks). On the swing-up the evidence's length-scales
+    learned worse; on ``Reacher-v5`` (12 inputs) the rule's left every greedy state at
+    the prior (docs/design-notes.md)."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3
@@ -183,13 +189,19 @@ class GPQConfig:
     mountain car's +100 at the flag makes the optimistic prior 100, not
     ``100 / (1 - gamma) = 5,000``. ``None``: the task's known range (the mountain car's
     ``(99.9, 100)``), else the rewards of the terminating steps seen."""
-    prior: Prior = "optimistic"
+    prior: Prior = "auto"
     """What the GP assumes of ``Q`` where it has no data (the standardisation
     ``z = (y - y_mean) / y_scale``, set after every fitted-Q phase from the value
     bounds ``[lo, hi]`` of :meth:`GPQAgent.value_bounds` or from the targets):
     ``midrange``: mean ``(lo + hi) / 2``, std ``(hi - lo) / 2``; ``optimistic``:
     mean ``hi``, std ``(hi - lo) / 2`` (optimism in the face of uncertainty);
-    ``empirical``: mean and std of the current targets."""
+    ``empirical``: mean and std of the current targets. ``auto`` (the default,
+    resolved by :meth:`for_dims`): ``optimistic`` where the rule's length-scales
+    let the dimension's default budget cover the input box (:func:`rule_coverage`
+    >= 1), ``empirical`` where they cannot: there most inputs the agent meets are far
+    from every basis vector, an optimistic prior makes every unvisited action the best
+    one, and the greedy policy chases novelty (``Reacher-v5``: worse than no torque;
+    docs/design-notes.md)."""
     explore_map: ExploreMap = "auto"
     """Exploration over states on a map of the observed moves
     (:mod:`geoq.agents.map_explorer`, :mod:`geoq.agents.state_map`): ``auto`` builds one
@@ -263,7 +275,11 @@ class GPQConfig:
 
     def for_dims(self, obs_dim: int, action_dim: int) -> GPQConfig:
         """This config for a task of ``obs_dim`` observations and ``action_dim`` actions:
-        ``max_bv`` resolved (:func:`default_max_bv`), ``lengthscale``'s length checked."""
+        ``max_bv`` resolved (:func:`default_max_bv`), ``lengthscale``'s length checked, and
+        ``hyperparameters`` and ``prior`` resolved where ``auto``: by whether the rule's
+        length-scales let the dimension's default budget cover the input box
+        (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
+        speed, does not change how the agent learns)."""
         d = check_int(obs_dim, "obs_dim", 1) + check_int(action_dim, "action_dim", 1)
         ls = self.lengthscale
         if isinstance(ls, tuple) and len(ls) not in (1, d):
@@ -271,7 +287,15 @@ class GPQConfig:
                 f"lengthscale has {len(ls)} entries; expected 1 or {d} "
                 "(one per observation and action dimension)"
             )
-        return self if self.max_bv is not None else replace(self, max_bv=default_max_bv(d))
+        max_bv = default_max_bv(d) if self.max_bv is None else self.max_bv
+        rule = np.broadcast_to(self.rule_lengthscale(obs_dim, action_dim), (d,))
+        covered = rule_coverage(rule, default_max_bv(d)) >= 1.0
+        hyperparameters, prior = self.hyperparameters, self.prior
+        if hyperparameters == "auto":
+            hyperparameters = "rule" if covered or self.kernel != "euclidean" else "evidence"
+        if prior == "auto":
+            prior = "optimistic" if covered else "empirical"
+        return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior)
 
     def make_kernel(
         self, lengthscale: float | tuple[float, ...], period: FloatArray | None
@@ -344,6 +368,22 @@ def default_max_bv(input_dim: int) -> int:
     """
     check_int(input_dim, "input_dim", 1)
     return BUDGET_BASE * (2 if input_dim > BUDGET_BASE_DIM else 1)
+
+
+def rule_coverage(lengthscale: FloatArray, max_bv: int) -> float:
+    """How many times ``max_bv`` basis vectors could tile the scaled input box
+    ``[-1, 1]^d`` at length-scales ``lengthscale`` ``[d]`` (scaled units):
+    ``max_bv prod_i min(l_i, 1)``, each basis vector covering a box of half-sides ``l_i``.
+
+    Below 1 most of the box is more than a length-scale from every basis vector, and a
+    GP with those length-scales cannot carry values from the inputs it kept to the
+    ones the agent meets. The default rule (0.15 per state, 0.6 per action) gives 5.4
+    on 2 states and 1 action at 400 basis vectors (the swing-up, the mountain car),
+    1.6 on 3 + 1 at 800 (``Pendulum-v1``), 6.5 on 2 + 2 (TwoRooms), 0.24 on 4 + 1
+    (``InvertedPendulum-v5``) and 1e-7 on 10 + 2 (``Reacher-v5``).
+    """
+    ls = np.asarray(lengthscale, dtype=np.float64)
+    return float(max_bv * np.prod(np.minimum(ls, 1.0)))
 
 
 def _bounds(rb: Any, name: str) -> tuple[float, float] | None:

@@ -161,3 +161,13 @@ def test_cli_control_suite_refuses_an_unknown_task(tmp_path: Path) -> None:
     result = RUNNER.invoke(app, ["control-suite", "--baseline", "ppo", "--out",
                                  str(tmp_path / "o")])  # fmt: skip
     assert result.exit_code == 2 and "'ppo' is not one of" in result.output
+
+
+def test_the_report_writes_four_digits_and_no_exponent() -> None:
+    task = {"env_id": "Reacher-v5", "goal": "g", "source": "s", "seeds": 5,
+            "protocol_seeds": 5, "value": -9.600932, "low": -math.inf, "high": math.inf,
+            "reached": 0, "met": False, "ms_per_step": 23.46}  # fmt: skip
+    steps = dict(task, env_id="MountainCarContinuous-v0", value=10_000.0, low=5_000.0)
+    report = suite.control_suite_report([task, steps], baselines=[])
+    assert "| -9.601 [-inf, inf] |" in report and "| 10000 [5000, inf] |" in report
+    assert "fewer than 6 seeds" in report

@@ -255,7 +255,12 @@ def control_goals(tasks: Sequence[str] | None) -> list[ControlGoal]:
 def _figure(kind: str, value: float, low: float, high: float) -> str:
     if kind == "seeds_reaching":
         return f"{value:.0%} [{low:.0%}, {high:.0%}]"
-    return f"{value:g} [{low:g}, {high:g}]"
+    return f"{_short(value)} [{_short(low)}, {_short(high)}]"
+
+
+def _short(value: float) -> str:
+    """Four significant digits, no exponent below a million (steps: 10000, not 1e+04)."""
+    return f"{float(f'{value:.4g}'):g}"
 
 
 def control_suite_report(results: Sequence[Mapping[str, Any]], baselines: Sequence[str]) -> str:
@@ -272,8 +277,9 @@ def control_suite_report(results: Sequence[Mapping[str, Any]], baselines: Sequen
         "Each task under its own protocol (`geoq.experiments.control_suite`; its benchmark in "
         "the task's directory): the agent's defaults, greedy evaluation episodes from the "
         "default reset at every checkpoint. Steps to success and final returns: median over "
-        "seeds with a distribution-free 95% interval; a fraction of seeds: Clopper-Pearson "
-        "95% interval. ms / step: median wall time of learning per environment step.",
+        "seeds with a distribution-free 95% interval (unbounded, [-inf, inf], for a median "
+        "of fewer than 6 seeds); a fraction of seeds: Clopper-Pearson 95% interval. "
+        "ms / step: median wall time of learning per environment step.",
         "",
         head,
         rule,

@@ -3,9 +3,12 @@
 ``data/reference_run.json`` was recorded from the code before any speed change of issue 31
 (``python -m geoq.experiments.reference record RUN_DIR FILE`` on a run of
 ``REFERENCE_CONFIG``); it is re-based only with a written reason in CHANGELOG.md.
-``data/reference_quick.json`` is the same summary of ``geoq reproduce --scale quick``
-(checked by hand: ``python -m geoq.experiments.reference check results/demo
-tests/experiments/data/reference_quick.json``).
+``data/reference_run_avx2.json`` is the same run of the same code summarised on a
+machine of another kind (x86_64 without AVX-512: OpenBLAS's Haswell kernels, where
+``reference_run.json``'s had AVX-512); the run is held to what the two agree on
+(:func:`~geoq.experiments.reference.agreed`). ``data/reference_quick.json`` is the same
+summary of ``geoq reproduce --scale quick`` (checked by hand: ``python -m
+geoq.experiments.reference check results/demo tests/experiments/data/reference_quick.json``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from geoq.experiments.reference import (
     HALF_WIDTH_FRACTION,
     REFERENCE_CONFIG,
     REL_TOL,
+    agreed,
     compare,
     summarise,
 )
@@ -55,9 +59,39 @@ def test_quick_runs_every_paper_learner_and_paper_scale_every_learner():
     assert paper.budgets_of("nearest", "faithful") == paper.budgets == paper.budgets_of("nearest")
 
 
+#: One run of ``REFERENCE_CONFIG``, summarised on machines of two kinds.
+PLATFORM_REFERENCES = ("reference_run.json", "reference_run_avx2.json")
+
+
 def test_reduced_reproduction_matches_the_reference(tmp_path):
     reproduce(tmp_path, config=REFERENCE_CONFIG, jobs=2, progress=False)
-    assert compare(summarise(tmp_path), _reference()) == []
+    reference = agreed([_reference(name) for name in PLATFORM_REFERENCES])
+    assert compare(summarise(tmp_path), reference) == []
+
+
+def test_the_machines_disagree_only_where_rounding_decides():
+    """What the two references leave out: the refits on the graph kernels' Gram, which is
+    not positive definite (the novelty-driven learner's), and the verdicts built on them;
+    every other cell and verdict is held on any machine."""
+    first, second = (_reference(name) for name in PLATFORM_REFERENCES)
+    both = agreed([first, second])
+    cells = [tuple(x["cell"]) for x in both["left_out"] if "cell" in x]
+    assert cells and all(
+        (learner, column) == ("pd_novelty", "mse_refit") and kernel in ("nearest", "interpolated")
+        for learner, kernel, _, column in cells
+    )
+    assert len(both["cells"]) + len(cells) == len(first["cells"])
+    learners = {x["learner"] for x in both["left_out"] if "verdict" in x}
+    assert learners <= {"pd_novelty"}
+    assert agreed([first, second])["left_out"] == agreed([second, first])["left_out"]
+    # A run is held to every cell the machines agree on, and asked for nothing else.
+    run = copy.deepcopy(second)
+    assert compare(run, both) == []
+    kept = _finite_cell(run)
+    kept["mean"] = 2 * kept["mean"] + 1.0
+    assert any("mean" in line for line in compare(run, both))
+    with pytest.raises(ValueError, match="different configurations"):
+        agreed([first, {**second, "config": {**second["config"], "seeds": 2}}])
 
 
 def _finite_cell(summary: dict) -> dict:

@@ -19,9 +19,16 @@ reference's (relative) or within :data:`HALF_WIDTH_FRACTION` of its 95% half-wid
 whichever is looser; every verdict unchanged. A reference is re-based (recorded again)
 only with a written reason in CHANGELOG.md.
 
+Some cells are decided by rounding: a refit on a graph kernel's Gram, which is not
+positive definite, amplifies the last bits that differ between CPUs' BLAS kernels, so
+the same code and seeds give other means on another machine. Summaries of one
+configuration recorded on machines of different kinds find them: :func:`agreed` keeps
+what they agree on, and that is what a run is held to. The cells and verdicts left out
+are named in the result (``left_out``), and :func:`compare` does not ask for them.
+
 ``python -m geoq.experiments.reference record RUN_DIR FILE`` writes a summary;
-``python -m geoq.experiments.reference check RUN_DIR FILE`` compares a run with one (exit
-status 1 and one line per difference when they differ).
+``python -m geoq.experiments.reference check RUN_DIR FILE [FILE ...]`` compares a run with
+what the summaries agree on (exit status 1 and one line per difference when they differ).
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ __all__ = [
     "MSE_COLUMNS",
     "REFERENCE_CONFIG",
     "REL_TOL",
+    "agreed",
     "compare",
     "summarise",
 ]
@@ -160,9 +168,60 @@ def _cell_difference(new: Mapping[str, Any], ref: Mapping[str, Any]) -> str | No
     return None
 
 
+def _cells_agree(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
+    """Whether each of two records of one cell matches the other as its reference."""
+    return _cell_difference(a, b) is None and _cell_difference(b, a) is None
+
+
+def agreed(references: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The part of summaries of one configuration, recorded on different machines, that
+    they agree on: the first's cells that every other matches within the tolerances
+    (:func:`compare`'s, each way), and the learners' verdicts that every other has too.
+    What they disagree on is rounding's, not the method's; it is listed under
+    ``left_out``."""
+    if not references:
+        raise ValueError("agreed needs at least one reference summary")
+    first, others = references[0], references[1:]
+    for other in others:
+        if other["config"] != first["config"]:
+            raise ValueError("the references summarise different configurations")
+    other_cells = [{_cell_key(c): c for c in o["cells"]} for o in others]
+    other_verdicts = [{_verdict_key(v): v for v in o["verdicts"]} for o in others]
+    cells, verdicts, left_out = [], [], []
+    for c in first["cells"]:
+        key = _cell_key(c)
+        if all(key in o and _cells_agree(o[key], c) for o in other_cells):
+            cells.append(c)
+        else:
+            left_out.append({"cell": list(key)})
+    for v in first["verdicts"]:
+        key = _verdict_key(v)
+        kept = dict(v)
+        for learner, verdict in v.items():
+            if learner not in _VERDICT_KEY and any(
+                o.get(key, {}).get(learner) != verdict for o in other_verdicts
+            ):
+                del kept[learner]
+                left_out.append({"verdict": list(key), "learner": learner})
+        verdicts.append(kept)
+    return {**first, "cells": cells, "verdicts": verdicts, "left_out": left_out}
+
+
 def compare(run: Mapping[str, Any], reference: Mapping[str, Any]) -> list[str]:
     """Every difference between the summaries ``run`` and ``reference`` beyond the
-    tolerances (module docstring), one line each; empty when the run passes."""
+    tolerances (module docstring), one line each; empty when the run passes. Cells and
+    verdicts the reference lists under ``left_out`` (:func:`agreed`) are not asked for."""
+    left_out = reference.get("left_out", ())
+    skipped = {tuple(x["cell"]) for x in left_out if "cell" in x}
+    unasked = {(tuple(x["verdict"]), x["learner"]) for x in left_out if "verdict" in x}
+    run = {
+        **run,
+        "cells": [c for c in run["cells"] if _cell_key(c) not in skipped],
+        "verdicts": [
+            {k: x for k, x in v.items() if (_verdict_key(v), k) not in unasked}
+            for v in run["verdicts"]
+        ],
+    }
     out = []
     if run["config"] != reference["config"]:
         changed = sorted(
@@ -186,6 +245,10 @@ def compare(run: Mapping[str, Any], reference: Mapping[str, Any]) -> list[str]:
     return out
 
 
+#: The fields of a verdict record that name it; the others are its learners' verdicts.
+_VERDICT_KEY = ("claim", "posterior", "kernel")
+
+
 def _verdict_key(v: Mapping[str, str]) -> tuple[str, str, str]:
     return (v["claim"], v["posterior"], v["kernel"])
 
@@ -193,24 +256,31 @@ def _verdict_key(v: Mapping[str, str]) -> tuple[str, str, str]:
 def _learners(v: Mapping[str, str] | None) -> str:
     if v is None:
         return "missing"
-    return ", ".join(f"{k}: {x}" for k, x in v.items() if k not in ("claim", "posterior", "kernel"))
+    return ", ".join(f"{k}: {x}" for k, x in v.items() if k not in _VERDICT_KEY)
 
 
 def _main(argv: list[str]) -> int:
-    if len(argv) != 3 or argv[0] not in ("record", "check"):
+    if (
+        len(argv) < 3
+        or argv[0] not in ("record", "check")
+        or (argv[0] == "record" and len(argv) != 3)
+    ):
         print(__doc__.split("\n\n")[-1].strip(), file=sys.stderr)
         return 2
-    command, run_dir, path = argv
+    command, run_dir, *paths = argv
     summary = summarise(run_dir)
     if command == "record":
-        atomic_write_json(Path(path), summary)
+        atomic_write_json(Path(paths[0]), summary)
         print(f"recorded {len(summary['cells'])} cells and {len(summary['verdicts'])} verdicts")
         return 0
-    differences = compare(summary, json.loads(Path(path).read_text()))
+    reference = agreed([json.loads(Path(p).read_text()) for p in paths])
+    differences = compare(summary, reference)
     for line in differences:
         print(line)
-    n = len(summary["cells"])
-    print(f"{'differs from' if differences else 'matches'} the reference ({n} cells)")
+    n, left = len(reference["cells"]), len(reference["left_out"])
+    print(f"{'differs from' if differences else 'matches'} the reference ({n} cells"
+          + (f"; {left} cells or verdicts the references disagree on left out)" if left
+             else ")"))  # fmt: skip
     return 1 if differences else 0
 
 

@@ -26,9 +26,8 @@ from geoq.gp.evidence import (
 from geoq.kernels import SquaredExponential
 
 #: 344 state-action points of the two-room task (x, y, ax, ay) and a standardised
-#: target, on which the old fit stalled at its start (issue 14). CI clones the
-#: shared directory beside the repository.
-STALL_CSV = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "evidence_stall.csv"
+#: target, on which the old fit stalled at its start (issue 14).
+STALL_CSV = Path(__file__).parent / "data" / "evidence_stall.csv"
 
 
 def _data(seed: int, n: int = 80) -> tuple[np.ndarray, np.ndarray]:
@@ -39,11 +38,6 @@ def _data(seed: int, n: int = 80) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _stall_data() -> tuple[np.ndarray, np.ndarray]:
-    if not STALL_CSV.is_file():
-        pytest.fail(
-            f"{STALL_CSV} is missing: clone the shared data directory beside the repository "
-            "(../shared/data/evidence_stall.csv)"
-        )
     data = np.loadtxt(STALL_CSV, delimiter=",", skiprows=1)
     assert data.shape == (344, 5)
     return data[:, :4], data[:, 4]

@@ -1,21 +1,31 @@
 """Short learning runs whose every action and target is pinned (``data/pinned_runs.npz``).
 
 A refactor of the agent must leave them identical, bit for bit; a change of the
-algorithm re-records them (``python -m tests.agents._pinned``, then say why in the
-commit). Each run covers one path of the agent: the default squared exponential
+algorithm re-records them (``python -m tests.agents._pinned record``, then say why in
+the commit). Each run covers one path of the agent: the default squared exponential
 with uniform replay on three tasks, graph replay, no replay, a graph kernel, the
 resistance kernel, length-scales by evidence, and inputs scaled from warm-up data.
+
+The runs are recorded and checked in a subprocess under the portable kernel setting
+(:func:`tests._kernels.portable`: the SIMD, BLAS, numba and libm kernels of the x86-64
+baseline), so the pinned bits are those of any x86-64 machine, not of the one that
+recorded them. ``python -m tests.agents._pinned run OUT NAME ...`` writes the named
+runs' arrays to ``OUT`` (``saved`` names the continuation of :data:`SAVED_AGENT`).
 """
 
 from __future__ import annotations
 
+import os
 import platform
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import gymnasium
 import numpy as np
+from tests._kernels import PORTABLE_FLAG, ROOT, in_effect, portable
 from tests.agents._tasks import PointToGoal
 
 import geoq  # noqa: F401  (registers the envs)
@@ -103,14 +113,51 @@ def continue_saved(steps: int = 60) -> dict[str, np.ndarray]:
 
 
 def platform_tag() -> str:
-    """Where the fixture's bits hold: the CPU architecture and NumPy's SIMD kernels."""
-    from numpy._core._multiarray_umath import __cpu_features__ as features
+    """Where the fixture's bits were computed: the architecture, the kernels in effect
+    (:func:`tests._kernels.in_effect`) and the versions of what computes them."""
+    import scipy
 
-    simd = ",".join(sorted(k for k, v in features.items() if v and k.startswith("AVX512")))
-    return f"{platform.machine()} numpy {np.__version__} {simd}"
+    libc = "-".join(platform.libc_ver())
+    kernels = " ".join(f"{k} {v}" for k, v in in_effect().items())
+    return (
+        f"{platform.machine()} ({kernels}); numpy {np.__version__}, scipy {scipy.__version__}, "
+        f"{libc}"
+    )
+
+
+def compute(names: list[str]) -> dict[str, np.ndarray]:
+    """The arrays of the runs ``names`` (``saved``: :func:`continue_saved`), keyed
+    ``NAME/ARRAY`` as in the fixture, and ``platform``."""
+    arrays: dict[str, np.ndarray] = {"platform": np.asarray(platform_tag())}
+    for name in names:
+        got = continue_saved() if name == "saved" else run(name)
+        arrays.update({f"{name}/{k}": v for k, v in got.items()})
+    return arrays
+
+
+def run_portably(names: list[str]) -> dict[str, np.ndarray]:
+    """:func:`compute` in a subprocess under the portable kernel setting."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "runs.npz"
+        done = subprocess.run(
+            [sys.executable, "-m", "tests.agents._pinned", "run", str(out), *names],
+            cwd=ROOT,
+            env=portable(),
+            capture_output=True,
+            text=True,
+        )
+        if done.returncode != 0:
+            raise RuntimeError(f"the pinned runs {names} failed:\n{done.stderr[-4000:]}")
+        with np.load(out, allow_pickle=False) as data:
+            got = dict(data)
+    expected = "(numpy baseline openblas Nehalem numba nehalem)"
+    if expected not in str(got["platform"]):
+        raise RuntimeError(f"the portable kernel setting did not take: {got['platform']}")
+    return got
 
 
 def record() -> None:
+    """Re-records the fixture and the saved agent (under the portable setting)."""
     arrays = {f"{name}/{k}": v for name in RUNS for k, v in run(name).items()}
     agent = GPQAgent(PointToGoal(), seed=5, max_bv=30, window=50, gamma=0.9).learn(100)
     agent.save(SAVED_AGENT)
@@ -119,6 +166,20 @@ def record() -> None:
     np.savez_compressed(FIXTURE, **arrays)
 
 
-if __name__ == "__main__":
+def _main(argv: list[str]) -> int:
+    if argv[:1] == ["run"] and len(argv) >= 3:
+        np.savez(argv[1], **compute(argv[2:]))
+        return 0
+    if argv != ["record"]:
+        print(__doc__, file=sys.stderr)
+        return 2
+    if os.environ.get(PORTABLE_FLAG) != "1":  # record where the test checks
+        return subprocess.call([sys.executable, "-m", "tests.agents._pinned", "record"],
+                               cwd=ROOT, env=portable())  # fmt: skip
     record()
     print(f"wrote {FIXTURE} and {SAVED_AGENT} ({platform_tag()})", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_main(sys.argv[1:]))

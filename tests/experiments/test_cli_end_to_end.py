@@ -89,7 +89,7 @@ def test_killed_run_resumes_to_identical_files(tmp_path: Path, tiny_json: Path) 
     per_seed = sum(len(TINY.budgets_of(k)) for k in TINY.kernels) + sum(
         len(TINY.budgets_of(k, v)) for v in TINY.variants for k in VARIANT_KERNELS
     )
-    n_cells = per_seed * TINY.seeds
+    n_cells = per_seed * (TINY.seeds + min(TINY.probe_seeds, TINY.seeds))  # rounding probes
     assert 3 <= len(finished) < n_cells, "the kill must land mid-sweep"
     assert not (out / "fig3.csv").exists()
 

@@ -1,14 +1,16 @@
 """The reference test (issue 31): a reduced reproduction against a stored run.
 
-``data/reference_run.json`` was recorded from the code before any speed change of issue 31
-(``python -m geoq.experiments.reference record RUN_DIR FILE`` on a run of
-``REFERENCE_CONFIG``); it is re-based only with a written reason in CHANGELOG.md.
-``data/reference_run_avx2.json`` is the same run of the same code summarised on a
-machine of another kind (x86_64 without AVX-512: OpenBLAS's Haswell kernels, where
-``reference_run.json``'s had AVX-512); the run is held to what the two agree on
-(:func:`~geoq.experiments.reference.agreed`). ``data/reference_quick.json`` is the same
-summary of ``geoq reproduce --scale quick`` (checked by hand: ``python -m
-geoq.experiments.reference check results/demo tests/experiments/data/reference_quick.json``).
+``data/reference_run.json`` is the summary of a run of ``REFERENCE_CONFIG``
+(``python -m geoq.experiments.reference record RUN_DIR FILE``); it is re-based only with a
+written reason in CHANGELOG.md. The run measures which learners rounding decides (its
+rounding probe, :mod:`geoq.experiments.rounding`), and the test holds those as
+sensitive on any machine. ``data/kernels/`` holds the same run summarised on the same
+machine under the AVX2 and SSE kernel settings (``tests/_kernels.py``), and
+``data/machines/`` two summaries from machines of other kinds (an AVX-512 Sapphire
+Rapids, a machine with OpenBLAS's Haswell kernels; recorded before the probe existed,
+format 1). ``data/reference_quick.json`` is the same summary of ``geoq reproduce --scale
+quick`` (checked by hand: ``python -m geoq.experiments.reference check results/demo
+tests/experiments/data/reference_quick.json``).
 """
 
 from __future__ import annotations
@@ -19,12 +21,15 @@ from pathlib import Path
 
 import pytest
 
+from geoq.experiments.claims import SENSITIVE
 from geoq.experiments.config import VARIANTS, config_for_scale
 from geoq.experiments.reference import (
     HALF_WIDTH_FRACTION,
     REFERENCE_CONFIG,
     REL_TOL,
-    agreed,
+    _cell_difference,
+    _cell_key,
+    _verdict_key,
     compare,
     summarise,
 )
@@ -59,43 +64,65 @@ def test_quick_runs_every_paper_learner_and_paper_scale_every_learner():
     assert paper.budgets_of("nearest", "faithful") == paper.budgets == paper.budgets_of("nearest")
 
 
-#: One run of ``REFERENCE_CONFIG``, summarised on machines of two kinds.
-PLATFORM_REFERENCES = ("reference_run.json", "reference_run_avx2.json")
+#: The same run summarised under the other kernel settings of this machine, and on
+#: machines of other kinds.
+KERNEL_SETTINGS = ("kernels/avx2.json", "kernels/sse.json")
+OTHER_MACHINES = ("machines/sapphire_rapids.json", "machines/haswell.json")
 
 
+@pytest.mark.numbers
 def test_reduced_reproduction_matches_the_reference(tmp_path):
     reproduce(tmp_path, config=REFERENCE_CONFIG, jobs=2, progress=False)
-    reference = agreed([_reference(name) for name in PLATFORM_REFERENCES])
-    assert compare(summarise(tmp_path), reference) == []
+    assert compare(summarise(tmp_path), _reference()) == []
 
 
-def test_the_machines_disagree_only_where_rounding_decides():
-    """What the two references leave out: the refits on the graph kernels' Gram, which is
-    not positive definite (the novelty-driven learner's), and the verdicts built on them;
-    every other cell and verdict is held on any machine."""
-    first, second = (_reference(name) for name in PLATFORM_REFERENCES)
-    both = agreed([first, second])
-    cells = [tuple(x["cell"]) for x in both["left_out"] if "cell" in x]
-    assert cells and all(
-        (learner, column) == ("pd_novelty", "mse_refit") and kernel in ("nearest", "interpolated")
-        for learner, kernel, _, column in cells
-    )
-    assert len(both["cells"]) + len(cells) == len(first["cells"])
-    learners = {x["learner"] for x in both["left_out"] if "verdict" in x}
-    assert learners <= {"pd_novelty"}
-    assert agreed([first, second])["left_out"] == agreed([second, first])["left_out"]
-    # A run is held to every cell the machines agree on, and asked for nothing else.
-    run = copy.deepcopy(second)
-    assert compare(run, both) == []
-    kept = _finite_cell(run)
-    kept["mean"] = 2 * kept["mean"] + 1.0
-    assert any("mean" in line for line in compare(run, both))
-    with pytest.raises(ValueError, match="different configurations"):
-        agreed([first, {**second, "config": {**second["config"], "seeds": 2}}])
+def test_the_probe_finds_the_learners_rounding_decides():
+    """In the reference, rounding decides ``pd_novelty`` on both graph kernels (every
+    cell and every verdict of theirs) and nothing else; the other kernel settings find
+    the same and match it, although their numbers for those learners differ."""
+    ref = _reference()
+    flagged = {(c["learner"], c["kernel"]) for c in ref["cells"] if c["sensitive"]}
+    assert flagged == {("pd_novelty", "nearest"), ("pd_novelty", "interpolated")}
+    assert all(c["sensitive"] == ((c["learner"], c["kernel"]) in flagged) for c in ref["cells"])
+    for v in ref["verdicts"]:
+        assert (v["pd_novelty"] == SENSITIVE) == (v["kernel"] in ("nearest", "interpolated"))
+        assert SENSITIVE not in (v["tuned"], v["faithful"])
+    for name in KERNEL_SETTINGS:
+        other = _reference(name)
+        assert compare(other, ref) == [] and compare(ref, other) == []
+        means = {_cell_key(c): c["mean"] for c in other["cells"]}
+        moved = [c for c in ref["cells"] if c["sensitive"] and means[_cell_key(c)] != c["mean"]]
+        assert moved  # the flags are doing work
+
+
+def test_other_machines_differ_only_where_the_probe_found_rounding():
+    """The summaries of two other kinds of machine (before the probe existed) differ from
+    the reference beyond the tolerances only in cells and verdicts it flags."""
+    ref = _reference()
+    cells = {_cell_key(c): c for c in ref["cells"]}
+    verdicts = {_verdict_key(v): v for v in ref["verdicts"]}
+    for name in OTHER_MACHINES:
+        other = _reference(name)
+        differing = 0
+        for c in other["cells"]:
+            mine = cells[_cell_key(c)]
+            if _cell_difference(c, {**mine, "sensitive": False}) is not None:
+                assert mine["sensitive"], (name, _cell_key(c))
+                differing += 1
+        for v in other["verdicts"]:
+            mine = verdicts[_verdict_key(v)]
+            for learner in ("tuned", *VARIANTS):
+                if v[learner] != mine[learner]:
+                    assert mine[learner] == SENSITIVE, (name, _verdict_key(v), learner)
+        assert differing > 0
 
 
 def _finite_cell(summary: dict) -> dict:
-    return next(c for c in summary["cells"] if c["mean"] is not None and c["half_width"])
+    return next(
+        c
+        for c in summary["cells"]
+        if c["mean"] is not None and c["half_width"] and not c["sensitive"]
+    )
 
 
 def test_a_mean_is_held_to_the_looser_of_the_two_tolerances():
@@ -106,6 +133,20 @@ def test_a_mean_is_held_to_the_looser_of_the_two_tolerances():
         run = copy.deepcopy(ref)
         _finite_cell(run)["mean"] = cell["mean"] + factor * allowed
         assert (compare(run, ref) == []) is passes
+
+
+def test_a_sensitive_cell_is_held_as_sensitive():
+    ref = _reference()
+    cell = next(c for c in ref["cells"] if c["sensitive"])
+    run = copy.deepcopy(ref)
+    moved = next(c for c in run["cells"] if _cell_key(c) == _cell_key(cell))
+    moved["mean"], moved["diverged"] = 1e9, 0  # rounding's numbers: not compared
+    assert compare(run, ref) == []
+    moved["sensitive"] = False
+    assert any("decided by rounding in the reference only" in line for line in compare(run, ref))
+    stable = next(c for c in run["cells"] if not c["sensitive"])
+    stable["sensitive"] = True
+    assert any("decided by rounding in the run only" in line for line in compare(run, ref))
 
 
 def test_divergence_verdicts_and_cells_are_compared():

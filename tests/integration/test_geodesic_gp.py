@@ -230,7 +230,7 @@ def test_staleness_of_online_posterior_vs_refit(data, resistance_current, record
     print("\nRMS change online -> refit at held-out inputs (mean / target std, std / prior std):")
     for key, (dm, ds) in results.items():
         print(f"  {key:40s} {dm:10.3g} {ds:10.3g}")
-        record_property(key, (dm, ds))
+        record_property(key, (float(dm), float(ds)))  # plain floats: xdist sends them
     # SE: on a fixed BV set the online pass *is* the DTC posterior refit computes; what is
     # left is rounding (K_BV of successive trajectory points has condition number ~1e16).
     assert max(results[f"se, max_bv={n}, tol=0"]) < 1e-4

@@ -12,6 +12,10 @@ the same evaluation pairs), with Student-t 95% intervals over seeds:
 3. *slower variance decrease*: ``NV_geo - NV_euc > 0``;
 4. *a band where it is worse*: budgets where ``MSE_geo - MSE_euc > 0``.
 
+A verdict that reads a learner whose results rounding decides (the graph kernel's or
+the baseline's; :mod:`geoq.experiments.rounding`) is :data:`SENSITIVE`: the same code
+and seeds give another verdict on another CPU.
+
 REPORT.md (:mod:`geoq.experiments.report`) renders them; the reference test of the
 reproduction (:mod:`geoq.experiments.reference`) compares them with a stored run.
 """
@@ -24,9 +28,20 @@ from typing import Any
 import numpy as np
 
 from geoq.experiments.config import VARIANTS
+from geoq.experiments.rounding import sensitive_learners
 from geoq.experiments.stats import Interval, paired_difference
 
-__all__ = ["GRAPH_KERNELS", "POSTERIOR_COLUMNS", "ClaimVerdict", "assess_claims", "claim_verdicts"]
+__all__ = [
+    "GRAPH_KERNELS",
+    "POSTERIOR_COLUMNS",
+    "SENSITIVE",
+    "ClaimVerdict",
+    "assess_claims",
+    "claim_verdicts",
+]
+
+#: The verdict of a claim that reads results rounding decides.
+SENSITIVE = "sensitive to rounding"
 
 GRAPH_KERNELS = ("nearest", "interpolated", "resistance")
 
@@ -161,13 +176,17 @@ def claim_verdicts(
     variant_rows: Sequence[Mapping[str, Any]] = (),
     *,
     tuned_only_kernels: bool = True,
+    show_local: bool = False,
 ) -> list[dict[str, str]]:
     """The verdict of each claim, posterior and graph kernel, per learner: REPORT.md's
     "Do the paper's claims change?" table as records (``claim``, ``posterior``, ``kernel``,
-    then ``tuned`` and each variant: the verdict, ``"undetermined (MSE not finite)"`` or
-    ``"-"``). ``tuned_only_kernels``: keep the kernels no variant was run for (``resistance``;
-    the report's table leaves them out, their verdicts are in the sections above it).
+    then ``tuned`` and each variant: the verdict, :data:`SENSITIVE`, ``"undetermined (MSE
+    not finite)"`` or ``"-"``). ``tuned_only_kernels``: keep the kernels no variant was run
+    for (``resistance``; the report's table leaves them out, their verdicts are in the
+    sections above it). ``show_local``: a sensitive verdict also says what it is on this
+    machine (``"sensitive to rounding (here: supported)"``).
     """
+    sensitive = sensitive_learners([*rows, *variant_rows])
     names = [v for v in VARIANTS if any(r["variant"] == v for r in variant_rows)]
     baseline = [r for r in rows if r["kernel"] == "euclidean"]
     by_variant = {
@@ -190,12 +209,15 @@ def claim_verdicts(
                     continue
                 record = {"claim": claim, "posterior": posterior, "kernel": g}
                 for v, c, sub in zip(by_variant, cells, by_variant.values(), strict=True):
-                    record[v] = (
+                    verdict = (
                         "undetermined (MSE not finite)"
                         if c is not None
                         and "variance" not in claim  # the other three claims test MSEs
                         and not _finite_enough(sub, g, posterior)
                         else (c[i]["verdict"] if c is not None else "-")
                     )
+                    if c is not None and {(v, g), ("tuned", "euclidean")} & sensitive:
+                        verdict = f"{SENSITIVE} (here: {verdict})" if show_local else SENSITIVE
+                    record[v] = verdict
                 out.append(record)
     return out

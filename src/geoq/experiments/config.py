@@ -134,6 +134,9 @@ class ReproConfig:
     variants: tuple[str, ...] = tuple(VARIANTS)
     """Learners run beside the tuned ones in Fig. 3 for the paper's graph kernels
     (:data:`VARIANTS`; empty: none)."""
+    probe_seeds: int = 3
+    """Seeds (the first ones) whose Fig. 3 cells also run a rounding probe, which finds the
+    results that rounding decides (:mod:`geoq.experiments.rounding`); 0: none."""
     learner: QGPConfig = field(default_factory=QGPConfig)
     """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
 
@@ -145,6 +148,7 @@ class ReproConfig:
         for name in _COUNT_FIELDS:
             high = MAX_BUDGET if name.endswith("max_bv") else _MAX_COUNT
             _integer(getattr(self, name), name, 1, high)
+        _integer(self.probe_seeds, "probe_seeds", 0, _MAX_COUNT)
         _sequence(self.budgets, "budgets", lambda v, n: _integer(v, n, 1, MAX_BUDGET))
         _sequence(
             self.beyond_paper_budgets,

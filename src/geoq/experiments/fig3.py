@@ -29,6 +29,7 @@ from geoq.baselines.tabular_td import td_baseline
 from geoq.evaluation.metrics import mse, normalized_variance
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
 from geoq.experiments.config import ReproConfig
+from geoq.experiments.rounding import POSTERIOR_OF, PROBE_SUFFIX, perturb
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_key, cell_spec, load_cell
 from geoq.gp import NumericalWarning
@@ -67,6 +68,8 @@ FIG3_COLUMNS = (
     "variance_clipped",
     "eig_clips",
     "q_resyncs",
+    # The rounding probe's values (geoq.experiments.rounding; empty where not probed).
+    *(column + PROBE_SUFFIX for column in POSTERIOR_OF),
 )
 #: Column order of ``fig3_variants.csv`` (learners run beside the tuned ones).
 VARIANT_COLUMNS = ("variant", *FIG3_COLUMNS)
@@ -151,6 +154,9 @@ class BudgetCell:
     truth: dict[str, Any]
     variant: str = "tuned"
     """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.config.VARIANTS`."""
+    probe: bool = False
+    """Whether this is the cell's rounding probe: the same learner on training data
+    perturbed at rounding level (:mod:`geoq.experiments.rounding`)."""
 
 
 def refits_per_rollout(kernel: str, variant: str) -> bool:
@@ -204,6 +210,8 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
         rng_for(cell.root_seed, cell.seed, STREAM["train"]),
         gamma=float(cell.truth["gamma"]),
     )
+    if cell.probe:
+        rollouts = perturb(rollouts, rng_for(cell.root_seed, cell.seed, STREAM["probe"]))
     row: dict[str, Any] = {"kernel": cell.kernel, "max_bv": cell.max_bv, "seed": cell.seed}
     row.update(
         score_learner(
@@ -219,6 +227,8 @@ def budget_cell(cell: BudgetCell) -> dict[str, Any]:
     )
     if cell.variant != "tuned":
         row["variant"] = cell.variant
+    if cell.probe:
+        row["probe"] = True
     return row
 
 

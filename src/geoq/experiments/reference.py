@@ -19,16 +19,17 @@ reference's (relative) or within :data:`HALF_WIDTH_FRACTION` of its 95% half-wid
 whichever is looser; every verdict unchanged. A reference is re-based (recorded again)
 only with a written reason in CHANGELOG.md.
 
-Some cells are decided by rounding: a refit on a graph kernel's Gram, which is not
-positive definite, amplifies the last bits that differ between CPUs' BLAS kernels, so
-the same code and seeds give other means on another machine. Summaries of one
-configuration recorded on machines of different kinds find them: :func:`agreed` keeps
-what they agree on, and that is what a run is held to. The cells and verdicts left out
-are named in the result (``left_out``), and :func:`compare` does not ask for them.
+Some learners' results are decided by rounding: the same code and seeds give other
+numbers on another CPU (:mod:`geoq.experiments.rounding`; the ``pd_novelty`` learners'
+chaotic re-anchoring, for one). The run measures which, with its rounding probe; their
+cells carry ``sensitive: true`` and their claims' verdicts read
+:data:`~geoq.experiments.claims.SENSITIVE`. :func:`compare` holds such a cell as
+sensitive (the run must find it so too; its mean and divergences are rounding's, not
+compared) and such a verdict as that word, on any machine.
 
 ``python -m geoq.experiments.reference record RUN_DIR FILE`` writes a summary;
-``python -m geoq.experiments.reference check RUN_DIR FILE [FILE ...]`` compares a run with
-what the summaries agree on (exit status 1 and one line per difference when they differ).
+``python -m geoq.experiments.reference check RUN_DIR FILE`` compares a run with a summary
+(exit status 1 and one line per difference when they differ).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from geoq._io import atomic_write_json
 from geoq.experiments.claims import claim_verdicts
 from geoq.experiments.config import VARIANTS, ReproConfig, config_for_scale
 from geoq.experiments.report import DIVERGED
+from geoq.experiments.rounding import sensitive_learners
 from geoq.experiments.stats import mean_interval
 from geoq.learners import KERNEL_NAMES
 
@@ -53,7 +55,6 @@ __all__ = [
     "MSE_COLUMNS",
     "REFERENCE_CONFIG",
     "REL_TOL",
-    "agreed",
     "compare",
     "summarise",
 ]
@@ -64,7 +65,7 @@ REL_TOL = 0.02
 HALF_WIDTH_FRACTION = 0.1
 #: The Fig. 3 columns compared (``mse_refit_episode``: the paper's tuned kernels only).
 MSE_COLUMNS = ("mse", "mse_refit", "mse_refit_episode")
-_FORMAT = 1
+_FORMAT = 2
 
 #: The reduced reproduction of the reference test (``tests/experiments``): the quick
 #: preset's learning problem (3 seeds, 3 x 250 training steps) with every kernel and
@@ -97,7 +98,9 @@ def _read_rows(path: Path) -> list[dict[str, Any]]:
     return [{k: v if k in text or v == "" else float(v) for k, v in r.items()} for r in rows]
 
 
-def _cells(rows: Sequence[Mapping[str, Any]], learner: str) -> list[dict[str, Any]]:
+def _cells(
+    rows: Sequence[Mapping[str, Any]], learner: str, sensitive: set[tuple[str, str]]
+) -> list[dict[str, Any]]:
     out = []
     keys = sorted({(str(r["kernel"]), int(r["max_bv"])) for r in rows})
     for kernel, budget in keys:
@@ -122,6 +125,7 @@ def _cells(rows: Sequence[Mapping[str, Any]], learner: str) -> list[dict[str, An
                     "half_width": half if math.isfinite(half) else None,
                     "n_seeds": len(sub),
                     "diverged": len(sub) - len(ok),
+                    "sensitive": (learner, kernel) in sensitive,
                 }
             )
     return out
@@ -133,9 +137,10 @@ def summarise(run_dir: str | Path) -> dict[str, Any]:
     config = json.loads((run / "config.json").read_text())["config"]
     rows = _read_rows(run / "fig3_all.csv")
     variant_rows = _read_rows(run / "fig3_variants.csv")
-    cells = _cells(rows, "tuned")
+    sensitive = sensitive_learners([*rows, *variant_rows])
+    cells = _cells(rows, "tuned", sensitive)
     for v in VARIANTS:
-        cells += _cells([r for r in variant_rows if r["variant"] == v], v)
+        cells += _cells([r for r in variant_rows if r["variant"] == v], v, sensitive)
     return {
         "format": _FORMAT,
         "config": config,
@@ -150,6 +155,11 @@ def _cell_key(c: Mapping[str, Any]) -> tuple[str, str, int, str]:
 
 def _cell_difference(new: Mapping[str, Any], ref: Mapping[str, Any]) -> str | None:
     """Why ``new`` does not match ``ref`` (one cell), or None."""
+    if bool(new.get("sensitive")) != bool(ref.get("sensitive")):
+        found = "the run" if new.get("sensitive") else "the reference"
+        return f"decided by rounding in {found} only"
+    if ref.get("sensitive"):
+        return None  # its numbers are rounding's
     if new["diverged"] != ref["diverged"] or new["n_seeds"] != ref["n_seeds"]:
         return (
             f"{new['diverged']} of {new['n_seeds']} seeds diverged, reference "
@@ -168,65 +178,13 @@ def _cell_difference(new: Mapping[str, Any], ref: Mapping[str, Any]) -> str | No
     return None
 
 
-def _cells_agree(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
-    """Whether each of two records of one cell matches the other as its reference."""
-    return _cell_difference(a, b) is None and _cell_difference(b, a) is None
-
-
-def agreed(references: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """The part of summaries of one configuration, recorded on different machines, that
-    they agree on: the first's cells that every other matches within the tolerances
-    (:func:`compare`'s, each way), and the learners' verdicts that every other has too.
-    What they disagree on is rounding's, not the method's; it is listed under
-    ``left_out``."""
-    if not references:
-        raise ValueError("agreed needs at least one reference summary")
-    first, others = references[0], references[1:]
-    for other in others:
-        if other["config"] != first["config"]:
-            raise ValueError("the references summarise different configurations")
-    other_cells = [{_cell_key(c): c for c in o["cells"]} for o in others]
-    other_verdicts = [{_verdict_key(v): v for v in o["verdicts"]} for o in others]
-    cells, verdicts, left_out = [], [], []
-    for c in first["cells"]:
-        key = _cell_key(c)
-        if all(key in o and _cells_agree(o[key], c) for o in other_cells):
-            cells.append(c)
-        else:
-            left_out.append({"cell": list(key)})
-    for v in first["verdicts"]:
-        key = _verdict_key(v)
-        kept = dict(v)
-        for learner, verdict in v.items():
-            if learner not in _VERDICT_KEY and any(
-                o.get(key, {}).get(learner) != verdict for o in other_verdicts
-            ):
-                del kept[learner]
-                left_out.append({"verdict": list(key), "learner": learner})
-        verdicts.append(kept)
-    return {**first, "cells": cells, "verdicts": verdicts, "left_out": left_out}
-
-
 def compare(run: Mapping[str, Any], reference: Mapping[str, Any]) -> list[str]:
     """Every difference between the summaries ``run`` and ``reference`` beyond the
-    tolerances (module docstring), one line each; empty when the run passes. Cells and
-    verdicts the reference lists under ``left_out`` (:func:`agreed`) are not asked for."""
-    left_out = reference.get("left_out", ())
-    skipped = {tuple(x["cell"]) for x in left_out if "cell" in x}
-    unasked = {(tuple(x["verdict"]), x["learner"]) for x in left_out if "verdict" in x}
-    run = {
-        **run,
-        "cells": [c for c in run["cells"] if _cell_key(c) not in skipped],
-        "verdicts": [
-            {k: x for k, x in v.items() if (_verdict_key(v), k) not in unasked}
-            for v in run["verdicts"]
-        ],
-    }
+    tolerances (module docstring), one line each; empty when the run passes."""
     out = []
     if run["config"] != reference["config"]:
-        changed = sorted(
-            k for k in reference["config"] if run["config"].get(k) != reference["config"][k]
-        )
+        keys = set(run["config"]) | set(reference["config"])
+        changed = sorted(k for k in keys if run["config"].get(k) != reference["config"].get(k))
         out.append(f"configuration differs from the reference's in {changed}")
     new = {_cell_key(c): c for c in run["cells"]}
     ref = {_cell_key(c): c for c in reference["cells"]}
@@ -260,11 +218,7 @@ def _learners(v: Mapping[str, str] | None) -> str:
 
 
 def _main(argv: list[str]) -> int:
-    if (
-        len(argv) < 3
-        or argv[0] not in ("record", "check")
-        or (argv[0] == "record" and len(argv) != 3)
-    ):
+    if len(argv) != 3 or argv[0] not in ("record", "check"):
         print(__doc__.split("\n\n")[-1].strip(), file=sys.stderr)
         return 2
     command, run_dir, *paths = argv
@@ -273,14 +227,14 @@ def _main(argv: list[str]) -> int:
         atomic_write_json(Path(paths[0]), summary)
         print(f"recorded {len(summary['cells'])} cells and {len(summary['verdicts'])} verdicts")
         return 0
-    reference = agreed([json.loads(Path(p).read_text()) for p in paths])
+    reference = json.loads(Path(paths[0]).read_text())
     differences = compare(summary, reference)
     for line in differences:
         print(line)
-    n, left = len(reference["cells"]), len(reference["left_out"])
-    print(f"{'differs from' if differences else 'matches'} the reference ({n} cells"
-          + (f"; {left} cells or verdicts the references disagree on left out)" if left
-             else ")"))  # fmt: skip
+    n = len(reference["cells"])
+    rounding = sum(bool(c.get("sensitive")) for c in reference["cells"])
+    print(f"{'differs from' if differences else 'matches'} the reference ({n} cells, "
+          f"{rounding} of them decided by rounding)")  # fmt: skip
     return 1 if differences else 0
 
 

@@ -25,6 +25,7 @@ import platform
 import time
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,7 @@ from geoq.experiments.fig3 import (
 )
 from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 from geoq.experiments.report import render_report
+from geoq.experiments.rounding import attach_probes
 from geoq.experiments.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cap_jobs, cell_spec, run_sweep
 from geoq.experiments.tuning import TUNING_COLUMNS, TuningResult, tune
@@ -136,7 +138,9 @@ def reproduce(
     sweep = {"jobs": jobs, "backend": backend, "scheduler": scheduler, "progress": progress}
     run_sweep(truth_cells, truth_cell, truth_dir, desc="ground truth", **sweep)  # type: ignore[arg-type]
 
-    def budget(kernel: str, max_bv: int, tc: TruthCell, variant: str) -> BudgetCell:
+    def budget(
+        kernel: str, max_bv: int, tc: TruthCell, variant: str, probe: bool = False
+    ) -> BudgetCell:
         learner = tuning.configs[kernel]
         if variant != "tuned":
             learner = variant_learner(variant, learner)
@@ -151,6 +155,7 @@ def reproduce(
             truth_dir=str(truth_dir),
             truth=cell_spec(tc),
             variant=variant,
+            probe=probe,
         )
 
     cells = [
@@ -167,9 +172,13 @@ def reproduce(
         if k in cfg.kernels
         for b in cfg.budgets_of(k, v)
     ]
+    cells += [replace(c, probe=True) for c in cells if c.seed < cfg.probe_seeds]
     # Long cells first (the rows are sorted below; their content does not depend on it).
     ordered = longest_first(cells)
-    every = run_sweep(ordered, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
+    done = run_sweep(ordered, budget_cell, out / "cells" / "fig3", desc="fig3 cells", **sweep)  # type: ignore[arg-type]
+    every = attach_probes(
+        [r for r in done if not r.get("probe")], [r for r in done if r.get("probe")]
+    )
     rows = [r for r in every if "variant" not in r]
     rows.sort(key=lambda r: (KERNEL_NAMES.index(r["kernel"]), int(r["max_bv"]), int(r["seed"])))
     variant_rows = [r for r in every if "variant" in r]

@@ -17,6 +17,7 @@ STREAM = {
     "train": 0,  # per seed: the GP's training roll-outs
     "eval_pairs": 1,  # per seed: held-out roll-outs the evaluation pairs come from
     "monte_carlo": 2,  # per seed: Monte-Carlo ground truth at the evaluation pairs
+    "probe": 3,  # per seed: the perturbation of a rounding probe's training data
     "tuning": 1_000_001,  # run-wide: hyper-parameter selection data
     "graphs": 1_000_002,  # run-wide: Fig. 1 roll-outs
     "maps": 1_000_003,  # run-wide: Fig. 2 Monte-Carlo value map

@@ -13,7 +13,7 @@ comma  := ,
 # Worker processes of the reproduction's sweeps (results do not depend on it).
 JOBS   ?= 2
 
-.PHONY: install test test-latest test-mujoco lock demo lint bench reproduce-paper suite docs clean
+.PHONY: install test test-kernels test-latest test-mujoco lock demo lint bench reproduce-paper suite docs clean
 
 install: $(STAMP)
 
@@ -29,8 +29,16 @@ $(STAMP): pyproject.toml $(wildcard $(LOCK))
 	fi
 	touch $(STAMP)
 
+# Both cores (pytest-xdist, one worker per CPU; idle workers take queued tests).
+PYTEST := $(BIN)/python -m pytest -q -n auto --dist worksteal
+
 test: install
-	$(BIN)/python -m pytest -q
+	$(PYTEST)
+
+# The tests that compare numbers with recorded ones, under the kernels of three kinds of
+# x86-64 CPU on this one (native, AVX2, SSE; tests/_kernels.py). Arguments: ARGS="...".
+test-kernels: install
+	$(BIN)/python -m tests._kernels $(ARGS)
 
 # Re-resolve the lock to the newest releases pyproject.toml allows (uv, in a venv of its own).
 lock:
@@ -44,7 +52,7 @@ lock:
 # The tests of Gymnasium's MuJoCo tasks: installs the optional extra mujoco into .venv first.
 test-mujoco: install
 	$(BIN)/python -m pip install --quiet -c $(LOCK) -e ".[mujoco]"
-	$(BIN)/python -m pytest -q -m mujoco
+	$(PYTEST) -m mujoco
 
 test-latest:
 	rm -rf .venv-latest
@@ -52,7 +60,7 @@ test-latest:
 	.venv-latest/bin/python -m pip install --quiet --upgrade pip
 	.venv-latest/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[$(EXTRAS)]"
 	.venv-latest/bin/python -m pip list --format=freeze | grep -iE "^(numpy|scipy|numba|gymnasium|matplotlib)=="
-	.venv-latest/bin/python -m pytest -q -p no:cacheprovider
+	.venv-latest/bin/python -m pytest -q -n auto --dist worksteal -p no:cacheprovider
 
 demo: install
 	$(BIN)/geoq reproduce --out $(OUT) --scale quick --jobs $(JOBS)

@@ -90,7 +90,9 @@ def in_effect() -> dict[str, str]:
     from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
     from threadpoolctl import threadpool_info
 
-    blas = sorted({str(i.get("architecture")) for i in threadpool_info() if i["user_api"] == "blas"})
+    blas = sorted(
+        {str(i.get("architecture")) for i in threadpool_info() if i["user_api"] == "blas"}
+    )
     return {
         "numpy": ",".join(f for f in __cpu_dispatch__ if __cpu_features__.get(f)) or "baseline",
         "openblas": ",".join(blas),
@@ -104,13 +106,14 @@ def main(argv: list[str]) -> int:
     for name in SETTINGS:
         print(f"== {name}: {' '.join(f'{k}={v}' for k, v in SETTINGS[name].items()) or '-'}")
         code = subprocess.call(
-            [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args],
+            [sys.executable, "-m", "pytest", "-q", "-n", "auto", "-p", "no:cacheprovider", *args],
             cwd=ROOT,
             env=environ(name),
         )
         if code != 0:
             failed.append(f"{name} (exit {code})")
-    print("== " + (f"failed under: {', '.join(failed)}" if failed else "passed under every setting"))
+    verdict = f"failed under: {', '.join(failed)}" if failed else "passed under every setting"
+    print(f"== {verdict}")
     return 1 if failed else 0
 
 

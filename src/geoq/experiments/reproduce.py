@@ -138,9 +138,7 @@ def reproduce(
     sweep = {"jobs": jobs, "backend": backend, "scheduler": scheduler, "progress": progress}
     run_sweep(truth_cells, truth_cell, truth_dir, desc="ground truth", **sweep)  # type: ignore[arg-type]
 
-    def budget(
-        kernel: str, max_bv: int, tc: TruthCell, variant: str, probe: bool = False
-    ) -> BudgetCell:
+    def budget(kernel: str, max_bv: int, tc: TruthCell, variant: str) -> BudgetCell:
         learner = tuning.configs[kernel]
         if variant != "tuned":
             learner = variant_learner(variant, learner)
@@ -155,7 +153,6 @@ def reproduce(
             truth_dir=str(truth_dir),
             truth=cell_spec(tc),
             variant=variant,
-            probe=probe,
         )
 
     cells = [

@@ -6,7 +6,9 @@ The quick preset now runs the paper's learners only (the three kernels and the
 ``pd_novelty`` variant, run at the paper scale. The baseline in the same run is the
 former quick preset (every kernel and variant), timed alternately with the new one
 (``rounds`` of each, fresh output directories, 2 worker processes), and the stages of
-each run (tuning, ground truth, Fig. 3 cells, the rest) are printed.
+each run (tuning, ground truth, Fig. 3 cells, the rest) are printed. A third run,
+the quick preset without its rounding probe (``probe_seeds = 0``), gives the probe's
+cost in the same process (issue 44).
 """
 
 from __future__ import annotations
@@ -69,11 +71,17 @@ def main(quick: bool = False, rounds: int = 2, jobs: int = 2) -> None:
     old = new.replace(kernels=KERNEL_NAMES, variants=tuple(VARIANTS))
     if quick:
         new, old, rounds = new.replace(**TINY), old.replace(**TINY), 1
+    unprobed = new.replace(probe_seeds=0)
     print(f"geoq reproduce, quick preset, {jobs} worker processes, {rounds} round(s), alternating")
-    runs: dict[str, list[dict[str, float]]] = {"former preset": [], "quick preset": []}
+    runs: dict[str, list[dict[str, float]]] = {
+        "former preset": [],
+        "quick preset": [],
+        "no probe": [],
+    }
     for _ in range(rounds):
         runs["former preset"].append(_timed_run(old, jobs))
         runs["quick preset"].append(_timed_run(new, jobs))
+        runs["no probe"].append(_timed_run(unprobed, jobs))
     names = list(runs["quick preset"][0])
     print(f"  {'stage (s)':>16} " + "".join(f"{n:>16}" for n in runs))
     for stage in names:
@@ -84,6 +92,10 @@ def main(quick: bool = False, rounds: int = 2, jobs: int = 2) -> None:
         for o, n in zip(runs["former preset"], runs["quick preset"], strict=True)
     ]
     print("  former / quick, round by round: " + ", ".join(f"{r:.2f}x" for r in ratios))
+    probe = [
+        n["total"] / u["total"] for n, u in zip(runs["quick preset"], runs["no probe"], strict=True)
+    ]
+    print("  quick / no probe (the probe's cost): " + ", ".join(f"{r:.2f}x" for r in probe))
 
 
 if __name__ == "__main__":

@@ -103,6 +103,33 @@ def test_the_config_is_checked_by_the_agent_itself(
     assert calls == []
 
 
+@pytest.mark.parametrize(
+    ("max_bv", "reason"),
+    [
+        ('"10"', "got '10': not a number (a string; write 10 without quotes)"),
+        ("true", "got True: a bool, not an integer"),
+        ("20.0", "got 20.0: not an integer (a float; write 20)"),
+        ("0", "got 0: below 1 (a GP needs at least one basis vector)"),
+        ("6000", "got 6000: above 5000 (a GP of more basis vectors needs gigabytes)"),
+    ],
+)
+def test_a_bad_max_bv_in_the_config_says_what_is_wrong_with_it(
+    tmp_path: Path, calls: list[str], max_bv: str, reason: str
+) -> None:
+    """B13: the budget's own reason, the gigabytes note only for an integer above 5000."""
+    path = tmp_path / "c.json"
+    path.write_text(f'{{"max_bv": {max_bv}}}')
+    for command in ("train", "bench-control"):
+        result = _run(command, "--out", str(tmp_path / "o"), "--config", str(path),
+                      "--no-progress")  # fmt: skip
+        assert result.exit_code == 2, result.output
+        assert "'--config'" in result.output and "Traceback" not in result.output
+        text = " ".join(result.output.split())
+        assert f"max_bv must be an integer in [1, 5000], {reason}" in text, text
+        assert ("gigabytes" in text) == (max_bv == "6000")
+    assert calls == []
+
+
 OPTIONS = st.lists(
     st.one_of(
         st.tuples(st.just("--env"), st.sampled_from(["geoq/TwoRooms-v0", "Nope", "", "CartPole-v1",

@@ -8,7 +8,7 @@ downstream can assume C-contiguous, finite float64 arrays.
 from __future__ import annotations
 
 import math
-from numbers import Integral, Real
+from numbers import Integral, Number, Real
 from typing import Any
 
 import numpy as np
@@ -206,12 +206,48 @@ def check_int(value: Any, name: str, minimum: int, maximum: int | None = None) -
     return int(value)
 
 
+def _budget_problem(value: Any) -> str | None:
+    """What is wrong with ``value`` as a basis budget, or None if it is one."""
+
+    def hint(whole: Any) -> str:  # an integral value written otherwise: what to write
+        ok = isinstance(whole, int) and 1 <= whole <= MAX_BUDGET
+        return f"; write {whole}" if ok else ""
+
+    if isinstance(value, bool | np.bool_):
+        return "a bool, not an integer"
+    if isinstance(value, str):
+        try:
+            write = hint(int(value))
+        except ValueError:  # not an integer's digits (or past int's 4300 of them)
+            write = ""
+        return f"not a number (a string{write}{' without quotes' if write else ''})"
+    if not isinstance(value, Number):
+        return f"not a number ({'None' if value is None else 'a ' + type(value).__name__})"
+    if not isinstance(value, Integral):
+        try:
+            whole = int(value) if int(value) == value else None  # type: ignore[call-overload]
+        except (ArithmeticError, ValueError, TypeError):  # nan, inf, complex
+            whole = None
+        return f"not an integer (a {type(value).__name__}{hint(whole)})"
+    if int(value) < 1:
+        return "below 1 (a GP needs at least one basis vector)"
+    if int(value) > MAX_BUDGET:
+        return f"above {MAX_BUDGET} (a GP of more basis vectors needs gigabytes)"
+    return None
+
+
 def check_budget(value: Any, name: str = "max_bv") -> int:
-    """A basis-vector budget: an integer in ``[1, MAX_BUDGET]``."""
-    try:
-        return check_int(value, name, 1, MAX_BUDGET)
-    except ValueError as exc:
-        raise ValueError(f"{exc} (a GP of more basis vectors needs gigabytes)") from None
+    """A basis-vector budget: an integer (not a bool) in ``[1, MAX_BUDGET]``, as an int.
+
+    The ``ValueError`` says what is wrong: not a number, not an integer, below 1, or
+    above ``MAX_BUDGET`` (only there: a GP of more basis vectors needs gigabytes).
+    """
+    problem = _budget_problem(value)
+    if problem is not None:
+        raise ValueError(
+            f"{name} must be an integer in [1, {MAX_BUDGET}], got {value!r}: {problem}"
+        )
+    return int(value)
 
 
 def check_real(

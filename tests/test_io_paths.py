@@ -16,7 +16,9 @@ from tests._fuzz import fuzz_settings
 from geoq._io import (
     ArchiveError,
     atomic_write_text,
+    check_output_file,
     check_run_dir,
+    check_writable_dir,
     load_archive,
     output_path,
     save_archive,
@@ -145,3 +147,96 @@ def test_a_run_over_a_fifo_is_refused_before_any_work(tmp_path: Path) -> None:
     os.mkfifo(out / "b.txt")
     with pytest.raises(FileExistsError, match="FIFO"):
         check_run_dir(out, RUN, overwrite=True)
+
+
+# Unwritable places (B14): /proc and /sys take no new files, even from root (to whom
+# os.access says yes); a file where a directory is expected takes none either. chmod
+# would not do: the tests may run as root.
+PSEUDO = [d for d in ("/proc", "/proc/self", "/sys", "/sys/kernel") if os.path.isdir(d)]
+PLACES = ("dir", "file", "fifo", "dangling-link", *PSEUDO)
+
+
+def _place(tmp: Path, kind: str) -> Path:
+    if kind in PSEUDO:
+        return Path(kind)
+    path = tmp / kind
+    if kind == "dir":
+        path.mkdir()
+    elif kind == "file":
+        path.write_text("x")
+    elif kind == "fifo":
+        os.mkfifo(path)
+    else:
+        path.symlink_to(tmp / "nowhere")
+    return path
+
+
+def _really_writes(path: Path, run: bool) -> bool:
+    """The oracle: what the write itself does (a run: its directory made, a file made
+    in it; a file: atomic_write_text, which makes missing directories)."""
+    try:
+        if run:
+            os.makedirs(path, exist_ok=True)
+            with open(path / "a.txt", "x") as fh:
+                fh.write("x")
+        else:
+            atomic_write_text(path, "x")
+    except OSError:
+        return False
+    return True
+
+
+@fuzz_settings(80)
+@given(
+    place=st.sampled_from(PLACES),
+    parts=st.lists(st.sampled_from(["geoq-a", "geoq-b"]), max_size=2),
+    name=st.sampled_from(["out.gif", ""]),
+    run=st.booleans(),
+)
+def test_an_output_is_refused_up_front_exactly_when_writing_it_fails(
+    tmp_path_factory: pytest.TempPathFactory, place: str, parts: list[str], name: str, run: bool
+) -> None:
+    """check_output_file / check_run_dir raise (before any work) iff the write itself would
+    fail, whatever the place: a writable directory, a file, a FIFO or a dangling link on the
+    way, /proc, /sys. No probe file is left behind."""
+    tmp = tmp_path_factory.mktemp("w")
+    path = _place(tmp, place).joinpath(*parts, name) if parts or name else _place(tmp, place)
+    try:
+        if run:
+            check_run_dir(path, RUN, overwrite=True)
+        else:
+            check_output_file(path)
+    except OSError as exc:
+        refused: OSError | None = exc
+    else:
+        refused = None
+    assert not [p for p in tmp.rglob(".geoq-write-test-*")]
+    writes = _really_writes(path, run)
+    assert (refused is None) == writes, (path, refused)
+    if refused is not None and place in PSEUDO and not isinstance(refused, IsADirectoryError):
+        assert str(path) in str(refused) and "writable filesystem" in str(refused)
+
+
+@pytest.mark.skipif(not PSEUDO, reason="no /proc or /sys here")
+@pytest.mark.parametrize("place", PSEUDO)
+def test_pseudo_filesystems_are_refused_although_os_access_may_say_yes(place: str) -> None:
+    with pytest.raises(PermissionError, match=rf"cannot create files in {place} .*/proc, /sys"):
+        check_writable_dir(place)
+    with pytest.raises(PermissionError, match=rf"so {place}/geoq-run/deeper cannot be written"):
+        check_run_dir(Path(place) / "geoq-run" / "deeper", RUN, overwrite=False)
+    with pytest.raises(PermissionError, match=rf"so {place}/x.gif cannot be written"):
+        check_output_file(Path(place) / "x.gif", create=False)
+
+
+def test_a_missing_directory_or_a_file_on_the_way_is_named(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(NotADirectoryError, match=r"file is not a directory, so .*file/x.gif"):
+        check_output_file(tmp_path / "file" / "x.gif")
+    with pytest.raises(NotADirectoryError, match=r"so .*file/a cannot be made for .*a/x.gif"):
+        check_output_file(tmp_path / "file" / "a" / "x.gif")
+    with pytest.raises(FileNotFoundError, match=r"directory .*/new does not exist.*create it"):
+        check_output_file(tmp_path / "new" / "x.gif", create=False)
+    assert check_output_file(tmp_path / "new" / "x.gif") == tmp_path / "new" / "x.gif"
+    assert not (tmp_path / "new").exists()  # checked, not made
+    check_writable_dir(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # the probe is gone

@@ -37,7 +37,9 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "check_output_file",
     "check_run_dir",
+    "check_writable_dir",
     "load_archive",
     "output_path",
     "save_archive",
@@ -79,7 +81,7 @@ def output_path(path: str | os.PathLike[str]) -> Path:
         p = resolved
     try:
         mode = p.stat().st_mode
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # new; under a file: check_output_file
         return p
     if stat.S_ISDIR(mode):
         raise IsADirectoryError(f"{p} is a directory; give a file path")
@@ -125,20 +127,66 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     return Path(path)
 
 
+def check_writable_dir(
+    directory: str | os.PathLike[str],
+    target: str | os.PathLike[str] | None = None,
+    *,
+    create: bool = True,
+) -> None:
+    """An ``OSError`` unless files can be written in ``directory`` (for ``target``, named in
+    the message; default: the directory itself).
+
+    ``directory`` is a directory, or, with ``create``, can be made one: its nearest
+    existing ancestor is a directory (``NotADirectoryError`` otherwise;
+    ``FileNotFoundError`` for a missing one without ``create``). Writability is tested for
+    real, by creating and removing a temporary file in ``directory`` or that ancestor:
+    ``os.access`` says yes to root for everything, and to anyone on /proc and /sys, where
+    no file can be created (``PermissionError``, also for a read-only mount, a full disk).
+    """
+    d = Path(directory)
+    what = d if target is None else Path(target)
+    ancestor = d
+    while not (ancestor.exists() or ancestor.is_symlink()) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        if ancestor == d:
+            so = f"so {what} cannot be written"
+        else:
+            so = f"so {d} cannot be made" + ("" if what == d else f" for {what}")
+        raise NotADirectoryError(f"{ancestor} is not a directory, {so}; give a path in a directory")
+    if ancestor != d and not create:
+        raise FileNotFoundError(f"the directory {d} does not exist, so {what} cannot be "
+                                "written; create it first")  # fmt: skip
+    try:
+        fd, probe = tempfile.mkstemp(dir=ancestor, prefix=".geoq-write-test-")
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise PermissionError(
+            f"cannot create files in {ancestor} ({reason}), so {what} cannot be written: give "
+            "a path on a writable filesystem (not /proc, /sys or a read-only directory)"
+        ) from exc
+    os.close(fd)
+    Path(probe).unlink(missing_ok=True)
+
+
+def check_output_file(path: str | os.PathLike[str], *, create: bool = True) -> Path:
+    """The file a write to ``path`` replaces (:func:`output_path`), checked before any work:
+    an ``OSError`` unless it is a regular file or new, and its directory can receive it
+    (:func:`check_writable_dir`; ``create``: a missing directory may be made)."""
+    target = output_path(path)
+    check_writable_dir(target.parent, path, create=create)
+    return target
+
+
 def check_run_dir(out: str | os.PathLike[str], names: Collection[str], overwrite: bool) -> None:
     """An ``OSError`` unless ``out`` can receive a run of the files ``names``: it is a
-    directory or can be made one (its nearest existing ancestor is a writable directory),
-    and it holds none of them unless ``overwrite`` (``FileExistsError``)."""
+    directory or can be made one, files can be written there (:func:`check_writable_dir`:
+    tested with a temporary file), and it holds none of them unless ``overwrite``
+    (``FileExistsError``)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"{out} exists and is not a directory; give a directory")
-    ancestor = out
-    while not ancestor.exists() and ancestor != ancestor.parent:
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise FileExistsError(f"{ancestor} is not a directory, so {out} cannot be made")
-    if not os.access(ancestor, os.W_OK | os.X_OK):
-        raise PermissionError(f"{ancestor} is not writable, so {out} cannot be written")
+    check_writable_dir(out)
     earlier = sorted(n for n in names if (out / n).exists() or (out / n).is_symlink())
     for name in earlier:  # replaced later: regular files only (or links to them)
         output_path(out / name)

@@ -3,16 +3,29 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from tests._fuzz import fuzz_settings
 from tests.agents._tasks import PointToGoal, PointToGoalWithDistractors
 
+import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent, GPQConfig
-from geoq.agents.config import rule_coverage
+from geoq.agents.config import default_max_bv, rule_coverage
 from geoq.agents.replay import GraphReplay, NoReplay, UniformReplay
 from geoq.agents.state import LearningState, TrainingLog
-from geoq.kernels import GeodesicKernel, ResistanceKernel, SquaredExponential, make_kernel
+from geoq.kernels import (
+    KERNEL_NAMES,
+    GeodesicKernel,
+    ResistanceKernel,
+    SquaredExponential,
+    make_kernel,
+)
+
+FUZZ = fuzz_settings(60)
 
 
 def test_max_bv_has_one_rule_in_the_config_the_agent_and_the_gp() -> None:
@@ -58,6 +71,166 @@ def test_auto_follows_whether_the_rule_covers_the_inputs(
     # Values given are kept.
     given = GPQConfig(hyperparameters="rule", prior="midrange").for_dims(obs_dim, action_dim)
     assert (given.hyperparameters, given.prior) == ("rule", "midrange")
+
+
+@pytest.mark.parametrize(
+    ("lengthscale", "max_bv"),
+    [([-1.0, 0.5], 400), ([0.5, 0.0], 4), ([], 400), (np.array([np.nan, 0.5]), 4),
+     ([np.inf], 4), ([[0.5, 0.5]], 4), ("0.5", 4), ([True], 4), ([1 + 1j], 4)],
+)  # fmt: skip
+def test_rule_coverage_refuses_lengthscales_that_are_not_finite_and_positive(
+    lengthscale: Any, max_bv: int
+) -> None:
+    """``rule_coverage([-1, .5], 400)`` returned -200."""
+    with pytest.raises(ValueError, match="lengthscale must be one finite length-scale > 0"):
+        rule_coverage(lengthscale, max_bv)
+
+
+@pytest.mark.parametrize("max_bv", [0, -3, 2.5, True, "400", None, np.float64(4.0)])
+def test_rule_coverage_refuses_a_budget_that_is_not_an_integer_of_at_least_one(
+    max_bv: Any,
+) -> None:
+    with pytest.raises(ValueError, match="max_bv must be an integer >= 1"):
+        rule_coverage([0.5, 0.5], max_bv)
+
+
+@FUZZ
+@given(
+    ls=st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=0, max_size=6),
+    max_bv=st.one_of(st.integers(-5, 5000), st.sampled_from([np.int64(3), 1.0, True])),
+)
+def test_rule_coverage_is_the_tiling_count_or_a_value_error(ls: list[float], max_bv: Any) -> None:
+    good_ls = len(ls) > 0 and all(np.isfinite(v) and v > 0 for v in ls)
+    good_bv = not isinstance(max_bv, bool) and isinstance(max_bv, int | np.integer) and max_bv >= 1
+    if not (good_ls and good_bv):
+        with pytest.raises(ValueError, match=r"lengthscale|max_bv"):
+            rule_coverage(ls, max_bv)
+        return
+    got = rule_coverage(ls, max_bv)
+    expected = float(max_bv)
+    for v in ls:
+        expected *= min(v, 1.0)
+    assert got == pytest.approx(expected, rel=1e-12, abs=1e-300) and got >= 0
+
+
+#: ``(d_s, d_a)`` -> how ``auto`` resolves with the default length-scales and the
+#: ``euclidean`` kernel: the bundled tasks, Gymnasium's classic ones, the MuJoCo dims
+#: (InvertedPendulum 4 + 1, Swimmer 8 + 2, InvertedDoublePendulum 9 + 1 (v5) and
+#: 11 + 1 (v4), Reacher 10 + 2, Hopper 11 + 3, HalfCheetah / Walker2d 17 + 6, Pusher
+#: 23 + 7, Ant 27 + 8 / 105 + 8, Humanoid 348 + 17). Pinned: a change to the rule must
+#: leave the defaults as they are on every task.
+DEFAULT_RESOLUTION = {
+    (1, 1): ("rule", "optimistic"),  # PointToGoal
+    (2, 1): ("rule", "optimistic"),  # the swing-up, MountainCarContinuous-v0
+    (3, 1): ("rule", "optimistic"),  # Pendulum-v1 (coverage 1.6)
+    (2, 2): ("rule", "optimistic"),  # TwoRooms (6.5)
+    (1, 2): ("rule", "optimistic"),
+    (1, 3): ("rule", "optimistic"),
+    (3, 2): ("evidence", "empirical"),  # 0.97
+    (4, 1): ("evidence", "empirical"),  # 0.24
+    (8, 2): ("evidence", "empirical"),
+    (9, 1): ("evidence", "empirical"),
+    (11, 1): ("evidence", "empirical"),
+    (10, 2): ("evidence", "empirical"),
+    (11, 3): ("evidence", "empirical"),
+    (17, 6): ("evidence", "empirical"),
+    (23, 7): ("evidence", "empirical"),
+    (27, 8): ("evidence", "empirical"),
+    (105, 8): ("evidence", "empirical"),
+    (348, 17): ("evidence", "empirical"),
+}
+
+
+@pytest.mark.parametrize("kernel", KERNEL_NAMES)
+@pytest.mark.parametrize("max_bv", [None, 10, 5000])
+def test_defaults_resolve_as_pinned_on_every_task(kernel: str, max_bv: int | None) -> None:
+    for (obs_dim, action_dim), (hyperparameters, prior) in DEFAULT_RESOLUTION.items():
+        c = GPQConfig(kernel=kernel, max_bv=max_bv).for_dims(obs_dim, action_dim)  # type: ignore[arg-type]
+        if kernel != "euclidean":
+            hyperparameters = "rule"  # no length-scale per input to fit
+        assert (c.hyperparameters, c.prior) == (hyperparameters, prior), (obs_dim, action_dim)
+        assert c.max_bv == (default_max_bv(obs_dim + action_dim) if max_bv is None else max_bv)
+        assert c.for_dims(obs_dim, action_dim) == c  # resolved: resolves to itself
+
+
+@pytest.mark.parametrize(
+    ("env_id", "hyperparameters", "prior"),
+    [("geoq/PendulumSwingUp-v0", "rule", "optimistic"), ("geoq/TwoRooms-v0", "rule", "optimistic"),
+     ("Pendulum-v1", "rule", "optimistic"), ("MountainCarContinuous-v0", "rule", "optimistic")],
+)  # fmt: skip
+def test_the_bundled_tasks_resolve_as_pinned(env_id: str, hyperparameters: str, prior: str) -> None:
+    c = GPQAgent(env_id, max_bv=10).config
+    assert (c.hyperparameters, c.prior, c.lengthscale) == (hyperparameters, prior, None)
+
+
+@FUZZ
+@given(
+    obs_dim=st.integers(1, 400), action_dim=st.integers(1, 20),
+    kernel=st.sampled_from(KERNEL_NAMES), max_bv=st.one_of(st.none(), st.integers(1, 5000)),
+)  # fmt: skip
+def test_defaults_resolve_by_the_coverage_of_the_default_rule(
+    obs_dim: int, action_dim: int, kernel: str, max_bv: int | None
+) -> None:
+    """Oracle: the rule before explicit length-scales were told apart (no length-scale
+    given: coverage of 0.15 per state and 0.6 per action at the default budget)."""
+    budget = 400 if obs_dim + action_dim <= 3 else 800
+    covered = budget * 0.15**obs_dim * 0.6**action_dim >= 1.0
+    c = GPQConfig(kernel=kernel, max_bv=max_bv).for_dims(obs_dim, action_dim)  # type: ignore[arg-type]
+    fit = not covered and kernel == "euclidean"
+    assert c.hyperparameters == ("evidence" if fit else "rule")
+    assert c.prior == ("optimistic" if covered else "empirical")
+
+
+LENGTHSCALES = st.floats(1e-3, 10.0)
+
+
+@FUZZ
+@given(
+    obs_dim=st.integers(1, 40), action_dim=st.integers(1, 8), data=st.data(),
+    how=st.sampled_from(["lengthscale", "per_input", "state", "action", "both"]),
+)  # fmt: skip
+def test_lengthscales_given_are_the_ones_used(
+    obs_dim: int, action_dim: int, data: st.DataObject, how: str
+) -> None:
+    """A length-scale the user gives is used: ``auto`` resolves to ``rule``, never to
+    an evidence fit that would replace it; ``prior`` still reads the coverage of the
+    length-scales in use; ``hyperparameters="evidence"`` asked for is kept."""
+    d = obs_dim + action_dim
+    kwargs: dict[str, Any] = {}
+    if how == "lengthscale":
+        kwargs["lengthscale"] = data.draw(LENGTHSCALES)
+    elif how == "per_input":
+        kwargs["lengthscale"] = tuple(data.draw(st.lists(LENGTHSCALES, min_size=d, max_size=d)))
+    if how in ("state", "both"):
+        kwargs["state_lengthscale"] = data.draw(LENGTHSCALES.filter(lambda v: v != 0.15))
+    if how in ("action", "both"):
+        kwargs["action_lengthscale"] = data.draw(LENGTHSCALES.filter(lambda v: v != 0.6))
+    config = GPQConfig(**kwargs)
+    assert config.lengthscales_given()
+    c = config.for_dims(obs_dim, action_dim)
+    assert c.hyperparameters == "rule"
+    rule = np.broadcast_to(c.rule_lengthscale(obs_dim, action_dim), (d,))
+    covered = rule_coverage(rule, default_max_bv(d)) >= 1.0
+    assert c.prior == ("optimistic" if covered else "empirical")
+    asked = GPQConfig(**kwargs, hyperparameters="evidence").for_dims(obs_dim, action_dim)
+    assert asked.hyperparameters == "evidence"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "lengthscale"),
+    [({"lengthscale": 0.05}, [0.05]), ({"state_lengthscale": 0.05}, [0.05, 0.05, 0.6, 0.6]),
+     ({"action_lengthscale": 0.05}, [0.15, 0.15, 0.05, 0.05]),
+     ({"lengthscale": (0.05, 0.06, 0.3, 0.4)}, [0.05, 0.06, 0.3, 0.4])],
+)  # fmt: skip
+def test_an_agent_learns_with_the_lengthscales_given(
+    kwargs: dict[str, Any], lengthscale: list[float]
+) -> None:
+    """``GPQAgent("geoq/TwoRooms-v0", lengthscale=0.05)`` resolved ``auto`` to
+    ``evidence`` (their coverage is below 1) and learned with fitted length-scales."""
+    agent = GPQAgent("geoq/TwoRooms-v0", max_bv=40, seed=0, **kwargs).learn(60)
+    assert agent.config.hyperparameters == "rule" and agent.log.fitted_q_sweeps
+    assert agent.log.evidence_fits == [] and agent.state.fitted_lengthscale is None
+    np.testing.assert_array_equal(np.ravel(agent.gp.kernel.lengthscale), lengthscale)
 
 
 def test_auto_with_long_lengthscales_or_a_graph_kernel_keeps_the_rule() -> None:

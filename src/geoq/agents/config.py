@@ -85,7 +85,10 @@ class GPQConfig:
     """Squared-exponential length-scale(s) in scaled input units (``euclidean``); a
     sequence (stored as a tuple) has one entry per input dimension ``d_s + d_a``. ``None``: the rule
     ``state_lengthscale`` for every state dimension, ``action_lengthscale`` for
-    every action dimension."""
+    every action dimension. Given (or ``state_lengthscale`` / ``action_lengthscale``
+    given other than their defaults), they are the length-scales used: ``hyperparameters="auto"``
+    then resolves to ``rule``, never to a fit that would replace them (ask for
+    ``hyperparameters="evidence"`` to have them only as the fit's first start)."""
     state_lengthscale: float = 0.15
     """Length-scale of each state dimension when ``lengthscale`` is None (in
     half-ranges of the space: 0.15 of the pendulum's ``[-pi, pi]`` is 0.47 rad)."""
@@ -106,13 +109,15 @@ class GPQConfig:
     taken: ``amplitude`` and ``noise`` define the prior over values never seen (the
     optimism that drives exploration), which the evidence of the visited ones does
     not inform. Each fit is recorded in ``GPQAgent.log.evidence_fits``. ``auto`` (the
-    default, resolved by :meth:`for_dims`): ``rule`` where the rule's length-scales
-    let the dimension's default budget cover the input box (:func:`rule_coverage`
-    >= 1: the swing-up, the mountain car, ``Pendulum-v1``, TwoRooms), ``evidence``
-    where they cannot (``euclidean`` only; 4 states and 1 action, 3 and 2, and
-    beyond: Gymnasium's MuJoCo tasks). On the swing-up the evidence's length-scales
-    learned worse; on ``Reacher-v5`` (12 inputs) the rule's left every greedy state at
-    the prior (docs/design-notes.md)."""
+    default, resolved by :meth:`for_dims`): ``rule`` where the length-scales were given
+    (``lengthscale``, or ``state_lengthscale`` / ``action_lengthscale`` other than
+    their defaults: a setting given is the setting used), and where the default
+    rule's length-scales let the dimension's default budget cover the input box
+    (:func:`rule_coverage` >= 1: the swing-up, the mountain car, ``Pendulum-v1``,
+    TwoRooms); ``evidence`` where they cannot (``euclidean`` only; 4 states and 1
+    action, 3 and 2, and beyond: Gymnasium's MuJoCo tasks). On the swing-up the
+    evidence's length-scales learned worse; on ``Reacher-v5`` (12 inputs) the rule's
+    left every greedy state at the prior (docs/design-notes.md)."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3
@@ -196,12 +201,15 @@ class GPQConfig:
     ``midrange``: mean ``(lo + hi) / 2``, std ``(hi - lo) / 2``; ``optimistic``:
     mean ``hi``, std ``(hi - lo) / 2`` (optimism in the face of uncertainty);
     ``empirical``: mean and std of the current targets. ``auto`` (the default,
-    resolved by :meth:`for_dims`): ``optimistic`` where the rule's length-scales
-    let the dimension's default budget cover the input box (:func:`rule_coverage`
-    >= 1), ``empirical`` where they cannot: there most inputs the agent meets are far
-    from every basis vector, an optimistic prior makes every unvisited action the best
-    one, and the greedy policy chases novelty (``Reacher-v5``: worse than no torque;
-    docs/design-notes.md)."""
+    resolved by :meth:`for_dims`): ``optimistic`` where the rule's length-scales (those
+    in use at the start: ``lengthscale`` if given, else ``state_lengthscale`` /
+    ``action_lengthscale``, whether given or the defaults) let the dimension's default
+    budget cover the input box (:func:`rule_coverage` >= 1), ``empirical`` where they
+    cannot: there most inputs the agent meets are far from every basis vector, an
+    optimistic prior makes every unvisited action the best one, and the greedy policy
+    chases novelty (``Reacher-v5``: worse than no torque; docs/design-notes.md). So
+    short length-scales given on a task the defaults cover (``lengthscale=0.05`` on
+    TwoRooms: coverage 0.005) resolve to ``empirical``."""
     explore_map: ExploreMap = "auto"
     """Exploration over states on a map of the observed moves
     (:mod:`geoq.agents.map_explorer`, :mod:`geoq.agents.state_map`): ``auto`` builds one
@@ -279,7 +287,9 @@ class GPQConfig:
         ``hyperparameters`` and ``prior`` resolved where ``auto``: by whether the rule's
         length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
-        speed, does not change how the agent learns)."""
+        speed, does not change how the agent learns); ``hyperparameters`` to ``rule``
+        wherever length-scales were given (:meth:`lengthscales_given`). A resolved
+        config resolves to itself (a loaded agent's file is resolved again)."""
         d = check_int(obs_dim, "obs_dim", 1) + check_int(action_dim, "action_dim", 1)
         ls = self.lengthscale
         if isinstance(ls, tuple) and len(ls) not in (1, d):
@@ -292,10 +302,19 @@ class GPQConfig:
         covered = rule_coverage(rule, default_max_bv(d)) >= 1.0
         hyperparameters, prior = self.hyperparameters, self.prior
         if hyperparameters == "auto":
-            hyperparameters = "rule" if covered or self.kernel != "euclidean" else "evidence"
+            rule_kept = covered or self.kernel != "euclidean" or self.lengthscales_given()
+            hyperparameters = "rule" if rule_kept else "evidence"
         if prior == "auto":
             prior = "optimistic" if covered else "empirical"
         return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior)
+
+    def lengthscales_given(self) -> bool:
+        """Whether the user chose the squared exponential's length-scales: ``lengthscale``
+        set, or ``state_lengthscale`` / ``action_lengthscale`` other than their defaults."""
+        return self.lengthscale is not None or any(
+            getattr(self, name) != _DEFAULTS[name]
+            for name in ("state_lengthscale", "action_lengthscale")
+        )
 
     def make_kernel(
         self, lengthscale: float | tuple[float, ...], period: FloatArray | None
@@ -332,6 +351,10 @@ class GPQConfig:
         if unknown:
             raise ValueError(f"unknown GPQConfig field(s) {unknown}; known: {sorted(known)}")
         return cls(**data)
+
+
+#: Every field's default (``GPQConfig.lengthscales_given`` compares with them).
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(GPQConfig)}
 
 
 def check_seed(seed: Any) -> int | None:
@@ -381,8 +404,18 @@ def rule_coverage(lengthscale: FloatArray, max_bv: int) -> float:
     on 2 states and 1 action at 400 basis vectors (the swing-up, the mountain car),
     1.6 on 3 + 1 at 800 (``Pendulum-v1``), 6.5 on 2 + 2 (TwoRooms), 0.24 on 4 + 1
     (``InvertedPendulum-v5``) and 1e-7 on 10 + 2 (``Reacher-v5``).
+
+    ``ValueError`` unless ``lengthscale`` is one or more finite numbers > 0 and ``max_bv``
+    an integer >= 1.
     """
-    ls = np.asarray(lengthscale, dtype=np.float64)
+    check_int(max_bv, "max_bv", 1)
+    given = np.asarray(lengthscale)
+    ls = given.astype(np.float64) if given.dtype.kind in "iuf" else np.empty(0)
+    if ls.ndim > 1 or ls.size == 0 or not np.all(np.isfinite(ls)) or np.any(ls <= 0.0):
+        raise ValueError(
+            "lengthscale must be one finite length-scale > 0 or a flat sequence of them (one "
+            f"per input, in scaled units), got {lengthscale!r}"
+        )
     return float(max_bv * np.prod(np.minimum(ls, 1.0)))
 
 

@@ -5,6 +5,7 @@ and an earlier run is never replaced or mixed without ``--overwrite``."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 import types
 import warnings
@@ -257,3 +258,112 @@ def test_the_console_script_never_prints_a_traceback(
         cli.main()
     assert exit_info.value.code == 1
     assert capsys.readouterr().err == "geoq: internal error: RuntimeError: a bug somewhere\n"
+
+
+# Unwritable output places (B14): every option that writes (--out of every command,
+# evaluate's --video) is tried for real before any work, so that /proc, /sys or a file
+# where a directory should be is a usage error at once, not a failure after the run.
+# chmod would not make an unwritable place here: the tests may run as root.
+PSEUDO = [d for d in ("/proc", "/proc/self", "/sys", "/sys/kernel") if Path(d).is_dir()]
+OUT_COMMANDS = ("train", "bench-control", "control-suite", "suite", "reproduce")
+_SAVED: dict[str, Path] = {}
+
+
+def _saved_agent(factory: pytest.TempPathFactory) -> Path:
+    if "agent" not in _SAVED:
+        from geoq.agents import GPQAgent
+
+        path = factory.mktemp("agent") / "agent.npz"
+        GPQAgent("geoq/TwoRooms-v0", max_bv=10, n_candidates=5, seed=0).learn(5).save(path)
+        _SAVED["agent"] = path
+    return _SAVED["agent"]
+
+
+def _stub_work(mp: pytest.MonkeyPatch, made: list[str]) -> None:
+    """Every command's work replaced by a recorder (nothing runs, nothing is written)."""
+    import geoq.experiments.control as control
+    import geoq.experiments.control_suite as control_suite
+    import geoq.experiments.reproduce as reproduce
+    import geoq.experiments.video as video
+
+    mp.setattr(control, "train", lambda *a, **k: made.append("work") or _Agent())
+    mp.setattr(control, "run_control_benchmark", lambda *a, **k: made.append("work"))
+    mp.setattr(control_suite, "run_control_suite", lambda *a, **k: made.append("work"))
+    mp.setattr(reproduce, "reproduce", lambda *a, **k: made.append("work"))
+    suite = types.ModuleType("geoq.experiments.suite")
+    suite.run_suite = lambda *a, **k: made.append("work") or Path("SUITE.md")  # type: ignore[attr-defined]
+    mp.setitem(sys.modules, "geoq.experiments.suite", suite)
+    result = types.SimpleNamespace(summary=lambda: "summary")
+    mp.setattr(control, "evaluate_agent", lambda *a, **k: made.append("work") or result)
+    episode = types.SimpleNamespace(frames=[0], fps=1.0, ret=0.0)
+    mp.setattr(video, "record_episode", lambda *a, **k: episode)
+    mp.setattr(video, "write_gif", lambda *a, **k: None)
+
+
+def _writable(directory: Path, make: bool) -> bool:
+    """The oracle: a file can be made in ``directory`` (made first if ``make``)."""
+    if not make and not directory.is_dir():
+        return False
+    try:
+        os.makedirs(directory, exist_ok=True)
+        with open(directory / "oracle.txt", "x") as fh:
+            fh.write("x")
+    except OSError:
+        return False
+    return True
+
+
+@fuzz_settings(40)
+@given(
+    command=st.sampled_from([*OUT_COMMANDS, "evaluate"]),
+    place=st.sampled_from(["new", "existing", "file", "file/sub", *PSEUDO]),
+    sub=st.sampled_from(["", "geoq-run"]),
+)
+def test_every_output_is_tried_before_any_work(
+    tmp_path_factory: pytest.TempPathFactory, command: str, place: str, sub: str
+) -> None:
+    """Exit 2 naming the option and the path, nothing run, exactly where no file can be
+    made; else the command's work runs."""
+    tmp = tmp_path_factory.mktemp("cli-out")
+    (tmp / "existing").mkdir()
+    (tmp / "file").write_text("x")
+    where = (Path(place) if place in PSEUDO else tmp / place) / sub
+    if command == "evaluate":
+        option, target, directory = "--video", where / "v.gif", where
+        args = ["evaluate", str(_saved_agent(tmp_path_factory)), "--video", str(target)]
+    else:
+        option, target, directory = "--out", where, where
+        args = [command, "--out", str(target), "--no-progress"]
+    made: list[str] = []
+    with pytest.MonkeyPatch.context() as mp:
+        _stub_work(mp, made)
+        result = _run(*args)
+    assert "Traceback" not in result.output
+    if _writable(directory, make=command != "evaluate"):
+        assert result.exit_code == 0 and made == ["work"], result.output
+    else:
+        text = " ".join(result.output.split())
+        assert result.exit_code == 2 and made == [], result.output
+        assert f"'{option}'" in text and str(target).rstrip("/") in text, text
+
+
+@pytest.mark.skipif(not PSEUDO, reason="no /proc or /sys here")
+@pytest.mark.parametrize("command", [*OUT_COMMANDS, "evaluate"])
+def test_proc_and_sys_are_usage_errors_that_say_what_to_do(tmp_path: Path, command: str) -> None:
+    made: list[str] = []
+    junk = tmp_path / "agent.npz"
+    junk.write_text("junk")  # --video is checked before the agent is even read
+    with pytest.MonkeyPatch.context() as mp:
+        _stub_work(mp, made)
+        for place in PSEUDO:
+            if command == "evaluate":
+                target, option = f"{place}/geoq.gif", "'--video'"
+                result = _run("evaluate", str(junk), "--video", target)
+            else:
+                target, option = f"{place}/geoq-run", "'--out'"
+                result = _run(command, "--out", target, "--no-progress")
+            text = " ".join(result.output.split())
+            assert result.exit_code == 2 and option in text, text
+            assert f"cannot create files in {place}" in text and f"so {target} cannot" in text
+            assert "writable filesystem" in text and ".tmp" not in text
+    assert made == []

@@ -117,8 +117,9 @@ def one_line(exc: BaseException) -> str:
 
 def check_out(out: Path, run_files: Sequence[str] = (), overwrite: bool = False) -> None:
     """Usage errors for an output directory that is empty (the current one), a file, one
-    that cannot be made or written, or one holding an earlier run of ``run_files`` (unless
-    ``overwrite``): :func:`geoq._io.check_run_dir`, the library's own check."""
+    that cannot be made or written (on /proc, /sys, read-only: tested with a temporary
+    file), or one holding an earlier run of ``run_files`` (unless ``overwrite``):
+    :func:`geoq._io.check_run_dir`, the library's own check, before any work."""
     if str(out).strip() in ("", "."):
         raise typer.BadParameter(
             "give an output directory (an empty --out would write into the current one)",
@@ -180,22 +181,19 @@ def check_agents(env_id: str, kernels: Sequence[str], configs: Sequence[dict[str
 
 
 def check_video_path(path: Path) -> None:
-    """Usage errors for a video path that is not a ``.gif`` file in an existing directory."""
+    """Usage errors for a video path that is not a ``.gif`` file, or cannot be written: not a
+    regular file or a new one, or not in an existing directory where files can be made
+    (:func:`geoq._io.check_output_file`, tested with a temporary file there)."""
     if path.suffix.lower() != ".gif":
         raise typer.BadParameter(
             f"{path} does not end in .gif (videos are animated GIFs)", param_hint="'--video'"
         )
-    from geoq._io import output_path
+    from geoq._io import check_output_file
 
     try:
-        output_path(path)  # not a directory, FIFO, device or loop of links
+        check_output_file(path, create=False)
     except OSError as exc:
         raise typer.BadParameter(str(exc), param_hint="'--video'") from exc
-    if not path.parent.is_dir():
-        raise typer.BadParameter(
-            f"the directory {path.parent} does not exist; create it first",
-            param_hint="'--video'",
-        )
 
 
 def capped_jobs(jobs: int, scheduler: str | None) -> int:

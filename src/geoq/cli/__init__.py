@@ -27,9 +27,10 @@ Commands
 
 Exit codes: 0 success; 2 usage error (a bad option value or combination, an
 ``--env`` that is not registered or that the agent cannot learn, a ``--config``
-whose settings the agent refuses, an ``--out`` that cannot be written or holds an
-earlier run without ``--overwrite``, an ``AGENT`` file that is not a saved agent),
-always before any work; 1 failure while running, reported as one line on stderr
+whose settings the agent refuses, an ``--out`` or ``--video`` that cannot be written
+(tried with a temporary file there: /proc, /sys, a read-only directory) or an ``--out``
+holding an earlier run without ``--overwrite``, an ``AGENT`` file that is not a saved
+agent), always before any work; 1 failure while running, reported as one line on stderr
 (warnings too are one line each); 130 interrupted, 143 terminated (finished sweep
 cells are kept: rerun the same command to resume).
 

@@ -182,6 +182,47 @@ def test_bad_learn_arguments_are_refused_before_any_step() -> None:
     _assert_same(before, _snapshot(agent))
 
 
+# ---------------------------------------------------------------- learn(0)
+def _learned(agent: GPQAgent) -> dict[str, Any]:
+    """:func:`_snapshot` (without the wall time) plus the exploration map and the fitted-Q
+    phases' column order: everything later numbers depend on."""
+    out = _snapshot(agent)
+    del out["log"]["train_seconds"]
+    out["explorer"] = copy.deepcopy(agent.explorer.to_arrays())
+    out["slots"] = copy.deepcopy(agent.phase.covariances.slot_arrays())
+    return out
+
+
+@fuzz_settings(12)
+@given(
+    before=st.integers(0, 90), after=st.integers(1, 90), zeros=st.integers(1, 3),
+    kernel=st.sampled_from(["euclidean", "nearest"]),
+    exploration=st.sampled_from(["ucb", "thompson", "gaussian"]),
+)  # fmt: skip
+def test_learn_zero_changes_nothing_later_runs_depend_on(
+    before: int, after: int, zeros: int, kernel: str, exploration: str
+) -> None:
+    """``learn(0)`` drew the next episode's seed from the agent's generator (and ran a
+    phase when the last call ended mid-episode): an agent that called it went on
+    differently from one that never did."""
+
+    def make() -> GPQAgent:
+        return GPQAgent(PointToGoal(), kernel=kernel, max_bv=20, seed=5, gamma=0.9,  # type: ignore[arg-type]
+                        exploration=exploration, train_every=10)  # type: ignore[arg-type]  # fmt: skip
+
+    a, b = make().learn(before), make().learn(before)
+    seen = _learned(a)
+    for _ in range(zeros):
+        a.learn(0)
+        a.learn(0, progress_bar=True, callback=lambda rec: None)
+    _assert_same(seen, _learned(a))
+    a.learn(after)
+    b.learn(after)
+    _assert_same(_learned(b), _learned(a))
+    obs = np.linspace(-1, 1, 9)[:, None]
+    np.testing.assert_array_equal(a.predict(obs)[0], b.predict(obs)[0])
+
+
 # ---------------------------------------------------------------- spaces
 class _Bounds(PointToGoal):
     def __init__(self, low: float, high: float, dtype: Any = np.float32) -> None:

@@ -289,11 +289,14 @@ class GPQAgent:
         episode cut short by ``total_timesteps`` is not recorded. A step the env answers
         wrongly (:func:`~geoq.agents._env.env_step`) raises a ``ValueError`` and is not
         taken: the agent stays as after the step before (as before the call if none).
+        ``learn(0)`` takes no step and changes nothing (no draw, no phase).
         """
         check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
         if env is None:
             raise RuntimeError("this agent has no env; pass env= to GPQAgent.load to keep learning")
+        if total_timesteps == 0:  # no episode to seed, no step to train on
+            return self
         bar = _env.make_progress_bar(total_timesteps) if progress_bar else None
         start, n_before = self.rng.bit_generator.state, self.num_timesteps
         # Later episodes continue the env's own generator, seeded at the first reset.

@@ -64,7 +64,12 @@ class MapExplorer:
     def __init__(self, mode: ExploreMap, candidates: FloatArray, action_low: FloatArray,
                  action_high: FloatArray, gamma: float) -> None:  # fmt: skip
         self.mode, self.candidates, self.gamma = mode, candidates, gamma
-        self.half = 0.5 * (np.asarray(action_high) - np.asarray(action_low))
+        low, high = np.asarray(action_low), np.asarray(action_high)
+        self.half = 0.5 * (high - low)
+        #: The candidates in the action box's own centred, scaled coordinates ``[K, d_a]``
+        #: (``[-1, 1]^d_a``): the map compares moves there, so that relabelling the box
+        #: (``[0, 1]`` for ``[-1, 1]``) changes nothing.
+        self.centred = (np.asarray(candidates) - 0.5 * (low + high)) / self.half
         self.decided = mode == "off"
         self.map: StateMap | None = None
 
@@ -105,7 +110,7 @@ class MapExplorer:
             and high is not None
             and bool(np.all(np.isfinite(low)) and np.all(np.isfinite(high)))
         )
-        return StateMap(lo, np.maximum(hi, lo + 1e-12), self.candidates, self.gamma,
+        return StateMap(lo, np.maximum(hi, lo + 1e-12), self.centred, self.gamma,
                         stored.states, self.choices(stored.actions), stored.rewards,
                         stored.next_states, stored.terminated, declared_box=declared)  # fmt: skip
 
@@ -116,7 +121,8 @@ class MapExplorer:
         return self.candidates[self.map.explore(s[0], rng)][None, :].copy()
 
     def plan(self) -> None:
-        """Bring the map's plans up to date (``learn`` does, so ``predict`` needs not)."""
+        """Bring the map's plans up to date (the map also does so itself before it answers
+        :meth:`action` or :meth:`greedy`, and before it is saved)."""
         if self.map is not None:
             self.map.plan()
 
@@ -134,6 +140,7 @@ class MapExplorer:
         """The explorer's state as named arrays (:meth:`restore` reads them back)."""
         out: dict[str, Any] = {"decided": np.bool_(self.decided)}
         if self.map is not None:
+            self.map.plan()  # a file holds the plans of the map it holds
             out.update({f"map/{k}": v for k, v in self.map.to_arrays().items()})
         return out
 
@@ -143,10 +150,28 @@ class MapExplorer:
         if not arrays:
             self.decided = True
             return
-        self.decided = bool(arrays["decided"])
+        decided = np.asarray(arrays.get("decided"))
+        if decided.shape != () or decided.dtype.kind not in "bi" or int(decided) not in (0, 1):
+            raise ValueError("inconsistent exploration map: decided is not a flag")
+        self.decided = bool(decided)
         maps = {k[4:]: v for k, v in arrays.items() if k.startswith("map/")}
-        self.map = StateMap.from_arrays(maps) if maps else None
-        if self.map is not None and (
-            not self.decided or self.map.candidates.shape != self.candidates.shape
+        if not maps:
+            self.map = None
+            return
+        if self.mode == "off":
+            raise ValueError("inconsistent exploration map: explore_map is 'off' but a map is "
+                             "stored")  # fmt: skip
+        if not self.decided:
+            raise ValueError("inconsistent exploration map: a map stored before it was decided on")
+        m = StateMap.from_arrays(maps)
+        # a file from before the centred coordinates holds the raw candidates
+        if m.candidates.shape != self.centred.shape or not (
+            np.array_equal(m.candidates, self.centred)
+            or np.array_equal(m.candidates, self.candidates)
         ):
-            raise ValueError("inconsistent exploration map")
+            raise ValueError("inconsistent exploration map: its candidates are not the agent's")
+        m.candidates = self.centred.copy()
+        if m.gamma != self.gamma:
+            raise ValueError(f"inconsistent exploration map: gamma {m.gamma} is not the "
+                             f"agent's {self.gamma}")  # fmt: skip
+        self.map = m

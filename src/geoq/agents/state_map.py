@@ -29,8 +29,11 @@ Learning 21, 1995) and R-max's known-state MDP:
   a wall for the moves like it).
 * **Two plans** by value iteration over the leaves, only when the map changed. The
   *explore* plan values a leaf nothing has left from (the frontier) at
-  ``max(0, r_max) / (1 - gamma)`` until a termination is seen, then at the best
-  terminal reward (as good as the goal), with tried and predicted moves. The
+  ``max(0, r_max) / (1 - gamma)`` until a goal is seen, then at the best goal's
+  reward (as good as the goal), with tried and predicted moves. A *goal* is a
+  termination that pays at least as much as a step that did not end the episode; one
+  that pays less (a pit, a fall) is a *failure*: evidence about its place, backed up
+  like any transition, not a reason to stop exploring. The
   *exploit* plan values the frontier at the lower bound and uses tried moves, and
   predicted ones only towards a leaf that a tried move from the same leaf reached (no
   route through a wall nothing crossed) or in a leaf with none tried: an unexplored
@@ -40,8 +43,9 @@ Learning 21, 1995) and R-max's known-state MDP:
   a move whose nearest try (of a move like it, within a typical move) was blocked is
   dropped, one with no try that near counts half its value above the least return.
 * **Halving.** In an observation box the space declares (finite bounds), when no
-  termination has been seen and no unvisited leaf is in the explore plan's reach,
-  every visited leaf is halved along its widest side and the plans solved again: the
+  goal has been seen and no unvisited leaf is in the explore plan's reach,
+  every visited leaf is halved along its widest side (of the dimensions the moves
+  cover: one nothing moved along is never halved) and the plans solved again: the
   halves nothing started from are the new frontier, so a goal smaller than a leaf is
   still sought. A box read from the data says nothing of what lies outside it: there
   the leaves are not halved.
@@ -62,6 +66,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from geoq._typing import FloatArray, IntArray
+from geoq._validation import (
+    as_float_matrix,
+    as_float_point,
+    as_float_vector,
+    check_int,
+    check_real,
+)
 from geoq.agents._map_model import LeafModel
 from geoq.agents.map_cells import CellTree
 
@@ -93,6 +104,22 @@ class MapSettings:
     tol: float = 1e-3
     """Value iteration stops when no value moves more than this."""
     max_sweeps: int = 2000
+    """Most sweeps of one value iteration."""
+
+    def __post_init__(self) -> None:
+        """Each constant's range, checked here (``ValueError`` naming it)."""
+        check_real(self.side_scale, "side_scale", low=0.0, low_open=True)
+        check_real(self.quantile, "quantile", low=0.0, high=1.0, low_open=True)
+        check_real(self.blocked_fraction, "blocked_fraction", low=0.0, high=1.0)
+        check_real(self.min_split_fraction, "min_split_fraction", low=0.0, high=1.0,
+                   low_open=True)  # fmt: skip
+        check_real(self.blocked_cos, "blocked_cos", low=-1.0, high=1.0)
+        check_int(self.max_macro, "max_macro", 1)
+        check_real(self.route_margin, "route_margin", low=0.0, high=1.0, high_open=True)
+        if not isinstance(self.nearest_tries, bool | np.bool_):
+            raise ValueError(f"nearest_tries must be True or False, got {self.nearest_tries!r}")
+        check_real(self.tol, "tol", low=0.0, low_open=True)
+        check_int(self.max_sweeps, "max_sweeps", 1)
 
 
 class StateMap:
@@ -100,14 +127,16 @@ class StateMap:
 
     Parameters
     ----------
-    low, high : the observation box ``[d]`` (finite).
-    candidates : the agent's candidate actions ``[K, d_a]``; a transition counts for one.
-    gamma : the discount factor.
+    low, high : the observation box ``[d]`` (finite, ``low <= high``).
+    candidates : the agent's candidate actions ``[K, d_a]`` in the action box's centred,
+        scaled coordinates (``[-1, 1]^d_a``); a transition counts for one. Moves are
+        compared by their cosine there.
+    gamma : the discount factor, in ``[0, 1)``.
     states, choices, rewards, next_states, terminated : the transitions so far
         (``[N, d]``, ``[N]`` candidate indices, ``[N]``, ``[N, d]``, ``[N]``), ``N >= 1``:
         they fix the grid's side.
     declared_box : whether ``low, high`` are the observation space's own bounds (not the
-        data's range): only then, when no termination has been seen and nothing is left
+        data's range): only then, when no goal has been seen and nothing is left
         to explore, are the leaves halved to search inside them (:meth:`plan`).
     """
 
@@ -116,18 +145,30 @@ class StateMap:
         states: FloatArray, choices: IntArray, rewards: FloatArray, next_states: FloatArray,
         terminated: Any, settings: MapSettings | None = None, declared_box: bool = False,
     ) -> None:  # fmt: skip
-        self.settings = settings or MapSettings()
+        self.settings = MapSettings() if settings is None else settings
+        if not isinstance(self.settings, MapSettings):
+            raise ValueError(f"settings must be a MapSettings, got {settings!r}")
+        if not isinstance(declared_box, bool | np.bool_):
+            raise ValueError(f"declared_box must be True or False, got {declared_box!r}")
         self.declared_box = bool(declared_box)
-        self.candidates = np.asarray(candidates, dtype=np.float64)
-        self.gamma = float(gamma)
-        self.S = np.asarray(states, dtype=np.float64).copy()
-        self.S2 = np.asarray(next_states, dtype=np.float64).copy()
-        self.k = np.asarray(choices, dtype=np.int64).copy()
-        self.r = np.asarray(rewards, dtype=np.float64).copy()
-        self.done = np.asarray(terminated, dtype=bool).copy()
+        self.candidates = as_float_matrix(candidates, "candidates").copy()
+        if len(self.candidates) == 0:
+            raise ValueError("the map needs at least one candidate action")
+        self.gamma = check_real(gamma, "gamma", low=0.0, high=1.0, high_open=True)
+        d = np.size(low)
+        self.S = as_float_matrix(states, "states", d).copy()
+        n = len(self.S)
+        if n == 0:
+            raise ValueError("the map needs at least one transition: they fix its grid")
+        self.S2 = as_float_matrix(next_states, "next_states", d).copy()
+        self.k = _choices(choices, n, self.n_candidates)
+        self.r = as_float_vector(rewards, "rewards", n).copy()
+        self.done = _flags(terminated, n)
+        if len(self.S2) != n:
+            raise ValueError(f"next_states has {len(self.S2)} rows; expected {n} (one per state)")
         moves = np.abs(self.S2 - self.S)
         side = self.settings.side_scale * np.quantile(moves, self.settings.quantile, axis=0)
-        self.cells = CellTree(low, high, side)
+        self.cells = CellTree(low, high, side, anchor=self.S[0])
         self._set_typical_moves()
         self.leaf_s = self.cells.locate(self.S, create=True)
         self.leaf_s2 = self.cells.locate(self.S2, create=True)
@@ -176,6 +217,11 @@ class StateMap:
 
         The map is marked for re-planning when it changed: a new leaf, a new end leaf for
         its (leaf, candidate), a split, a termination or a blocked move."""
+        s = as_float_point(s, "s", self.cells.dim)
+        s2 = as_float_point(s2, "s2", self.cells.dim)
+        k = int(_choices([k], 1, self.n_candidates)[0])
+        r = float(as_float_vector([r], "r")[0])
+        terminated = bool(_flags([terminated], 1)[0])
         c = int(self.cells.locate(s[None], create=True)[0])
         end = int(self.cells.locate(s2[None], create=True)[0])
         same = (self.leaf_s == c) & (self.k == k)
@@ -252,26 +298,45 @@ class StateMap:
 
     # ----------------------------------------------------------------- planning
     def bounds(self) -> tuple[float, float]:
-        """``(lo, hi)``: the least and the most a discounted return of the rewards seen can be."""
-        g, r_min, r_max = self.gamma, float(self.r.min()), float(self.r.max())
+        """``(lo, hi)``: the least discounted return of the rewards of the steps that did not
+        end an episode (standing still for good: a route that never ends), and the most a
+        return of the rewards seen can be."""
+        g, r_max = self.gamma, float(self.r.max())
+        ongoing = self.r[~self.done]
+        r_min = float(ongoing.min() if ongoing.size else self.r.min())
         return min(r_min, r_min / (1 - g)), max(0.0, r_max) / (1 - g)
 
+    def _goals(self) -> np.ndarray:
+        """The transitions ``[N]`` (bool) that ended an episode and are not failures. A
+        failure pays less than any step that did not end one (a pit, a fall): it is
+        evidence about its place, not a goal to seek, and it does not stop the search."""
+        ongoing = self.r[~self.done]
+        if not ongoing.size:
+            return self.done.copy()
+        return self.done & (self.r >= ongoing.min())
+
     def _frontier(self) -> float:
-        """The explore plan's value of a leaf nothing has left from."""
-        return float(self.r[self.done].max()) if self.done.any() else self.bounds()[1]
+        """The explore plan's value of a leaf nothing has left from: the best goal's reward
+        once one is found (as good as the goal), the most a return can be before."""
+        goals = self._goals()
+        return float(self.r[goals].max()) if goals.any() else self.bounds()[1]
 
     def _predictions(self, blocked: np.ndarray) -> tuple[IntArray, FloatArray, FloatArray,
                                                          FloatArray]:  # fmt: skip
         """Predicted end leaf (-2: nothing to predict from), reward, termination and step
         count ``[L, K]`` of every (leaf, candidate) (a macro move from the leaf's centre)."""
         cells, K, d = self.cells, self.n_candidates, self.cells.dim
-        G, shape = cells.root.size, [*cells.n_grid.tolist(), K]
         moved = ~blocked
-        idx = cells.grid_index(self.S[moved]) * K + self.k[moved]
+        coords = cells.grid_coords(self.S[moved])
+        starts, cell = np.unique(coords, axis=0, return_inverse=True)
+        idx = cell.reshape(-1) * K + self.k[moved]
+        C = len(starts)
         weights = [*(self.S2[moved] - self.S[moved]).T, self.r[moved], self.done[moved]]
-        count = _around(np.bincount(idx, minlength=G * K).reshape(shape)).reshape(G, K)
-        sums = [_around(np.bincount(idx, weights=w, minlength=G * K).reshape(shape))
-                .reshape(G, K) for w in weights]  # fmt: skip
+        per_cell = [np.bincount(idx, minlength=C * K).reshape(C, K)]
+        per_cell += [np.bincount(idx, weights=w, minlength=C * K).reshape(C, K) for w in weights]
+        around = _around(cells, starts, np.concatenate(per_cell, axis=1))  # [R, (d + 3) K]
+        count, *sums = np.split(around, d + 3, axis=1)
+        count = count.astype(np.int64)
         every_count = np.bincount(self.k[moved], minlength=K)
         every_sum = [np.bincount(self.k[moved], weights=w, minlength=K) for w in weights]
         roots = cells.leaf_root
@@ -307,23 +372,25 @@ class StateMap:
         self.changed = False
 
     def _nothing_to_explore(self) -> bool:
-        """No termination seen and every visited leaf's explore value within
+        """No goal seen and every visited leaf's explore value within
         ``route_margin`` of the least return: no unvisited leaf is in reach."""
         lo, hi = self.bounds()
         top = lo + self.settings.route_margin * (hi - lo)
         visited = np.bincount(self.leaf_s, minlength=self.cells.n_leaves) > 0
-        return not self.done.any() and bool(self.V_explore[visited].max() < top)
+        return not self._goals().any() and bool(self.V_explore[visited].max() < top)
 
     def _halve_leaves(self) -> bool:
         """Halve each visited leaf's part inside the box along its widest side (in grid
-        sides) where the halves stay ``min_split_fraction`` wide; whether any was. The
-        halves nothing has started from are the explore plan's new frontier, so a goal
-        smaller than a leaf is still sought (docs/exploration.md). Each round at most
+        sides, of the dimensions some move covered) where the halves stay
+        ``min_split_fraction`` wide; whether any was. The halves nothing has started
+        from are the explore plan's new frontier, so a goal smaller than a leaf is still
+        sought (docs/exploration.md). Each round at most
         doubles the visited leaves, and a leaf that is not visited is not halved: the
         leaves stay fewer than twice the transitions plus the rounds x the leaves."""
         low = np.maximum(self.cells.leaf_low, self.cells.low)
         high = np.minimum(self.cells.leaf_high, self.cells.high)
-        width = (high - low) / self.cells.side
+        moving = np.any(self.S2 != self.S, axis=0)  # [d]: a dimension some move covers
+        width = np.where(moving, (high - low) / self.cells.side, 0.0)
         dims = np.argmax(width, axis=1)
         visited = np.bincount(self.leaf_s, minlength=width.shape[0]) > 0
         wide = width[np.arange(width.shape[0]), dims] / 2 >= self.settings.min_split_fraction
@@ -372,11 +439,11 @@ class StateMap:
     # ----------------------------------------------------------------- acting
     def knows_route(self, leaves: IntArray) -> np.ndarray:
         """Whether the exploit plan values each leaf ``[n]`` above the lower bound by
-        ``route_margin`` of the range (a route to a termination is known); False at -1."""
+        ``route_margin`` of the range (a route to a goal is known); False at -1."""
         lo, hi = self.bounds()
         ok = leaves >= 0
         v = self.V_exploit[np.maximum(leaves, 0)]
-        return ok & self.done.any() & (v > lo + self.settings.route_margin * (hi - lo))
+        return ok & self._goals().any() & (v > lo + self.settings.route_margin * (hi - lo))
 
     def explore(self, s: FloatArray, rng: np.random.Generator) -> int:
         """The candidate to take in training at ``s [d]``: the explore plan's best (ties
@@ -394,7 +461,9 @@ class StateMap:
         """The greedy policy's best candidates ``[n, K]`` (bool: ties within ``1e-9`` of the
         value range; :meth:`LeafModel.q_cautious`, then :meth:`_nearest_tries`) at each
         state ``[n, d]`` and whether the exploit plan knows a route from there ``[n]``
-        (no randomness; changes nothing)."""
+        (no randomness). Plans first if the map changed: the plans are a function of the
+        transitions, and :meth:`explore` would make the same ones before its next answer."""
+        self.plan()
         X = np.asarray(states, dtype=np.float64)
         leaves = self.cells.locate(X)
         q = self.Q_greedy[np.maximum(leaves, 0)]
@@ -454,47 +523,124 @@ class StateMap:
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, Any], settings: MapSettings | None = None) -> StateMap:
-        """A map from :meth:`to_arrays`' output; ``ValueError`` if it is inconsistent."""
+        """A map from :meth:`to_arrays`' output; ``ValueError`` naming the first array that
+        is inconsistent (every array is checked: a map that loads plans and acts).
+
+        A map saved with its plans out of date (``changed``; files written from inside
+        ``learn`` before the plans were brought up to date on save) loads too: its plans
+        are solved again before they are used, from the values it holds."""
+
+        def bad(what: str) -> ValueError:
+            return ValueError(f"inconsistent exploration map: {what}")
+
         m = cls.__new__(cls)
         m.settings = settings or MapSettings()
         m.cells = CellTree.from_arrays(
             {k[6:]: v for k, v in arrays.items() if k.startswith("cells/")}
         )
-        if "Q_greedy" not in arrays:  # a map saved before the cautious greedy policy
+        if "Q_greedy" not in arrays and "Q_exploit" in arrays:  # saved before the greedy plan
             arrays = {**arrays, "Q_greedy": arrays["Q_exploit"]}
-        for name in cls._ARRAYS:
-            setattr(m, name, np.asarray(arrays[name]))
-        m.k, m.leaf_s, m.leaf_s2 = (np.asarray(getattr(m, n), dtype=np.int64)
-                                    for n in ("k", "leaf_s", "leaf_s2"))  # fmt: skip
-        m.done = np.asarray(m.done, dtype=bool)
-        counters = np.asarray(arrays["counters"], dtype=np.float64)
+        missing = [name for name in (*cls._ARRAYS, "counters") if name not in arrays]
+        if missing:
+            raise bad(f"no {missing}")
+        d = m.cells.dim
+        try:
+            m.candidates = as_float_matrix(arrays["candidates"], "candidates")
+            m.S = as_float_matrix(arrays["S"], "S", d)
+            n = len(m.S)
+            m.S2 = as_float_matrix(arrays["S2"], "S2", d)
+            m.k = _choices(arrays["k"], n, len(m.candidates))
+            m.r = as_float_vector(arrays["r"], "r", n)
+            m.done = _flags(arrays["done"], n)
+            counters = as_float_vector(arrays["counters"], "counters")
+        except ValueError as exc:
+            raise bad(str(exc)) from None
+        if n == 0 or len(m.S2) != n or len(m.candidates) == 0:
+            raise bad("no transitions, or S2 not one per state")
         if counters.shape not in ((4,), (6,)):
-            raise ValueError("inconsistent exploration map")
+            raise bad(f"counters has shape {counters.shape}")
         # a map saved before the halving: none done, and none to do (it keeps on as it did)
         gamma, changed, plans, sweeps, halvings, declared = (*counters, 0.0, 0.0)[:6]
+        if not 0.0 <= gamma < 1.0 or changed not in (0.0, 1.0) or declared not in (0.0, 1.0):
+            raise bad("counters: gamma outside [0, 1) or a flag that is not 0 or 1")
+        if any(c < 0 or c != int(c) for c in (plans, sweeps, halvings)):
+            raise bad("counters: a count that is not a whole number >= 0")
         m.gamma, m.changed, m.plans, m.sweeps = float(gamma), bool(changed), int(plans), int(sweeps)
         m.halvings, m.declared_box = int(halvings), bool(declared)
-        n, L, K = m.k.size, m.cells.n_leaves, m.n_candidates
-        if (
-            m.S.shape != (n, m.cells.dim) or m.S2.shape != m.S.shape or m.r.shape != (n,)
-            or m.done.shape != (n,) or m.leaf_s.shape != (n,) or m.leaf_s2.shape != (n,)
-            or m.V_explore.shape != (L,) or m.V_exploit.shape != (L,)
-            or m.Q_explore.shape != (L, K) or m.Q_exploit.shape != (L, K)
-            or m.Q_greedy.shape != (L, K)
-            or np.any(m.k < 0) or np.any(m.k >= K) or n == 0
-        ):  # fmt: skip
-            raise ValueError("inconsistent exploration map")
+        for name, points in (("leaf_s", m.S), ("leaf_s2", m.S2)):
+            leaves = np.asarray(arrays[name])
+            if leaves.shape != (n,) or not np.array_equal(leaves, m.cells.locate(points)):
+                raise bad(f"{name} is not the leaf of each point")
+            setattr(m, name, leaves.astype(np.int64))
+        if np.any(m.leaf_s < 0):
+            raise bad("a state lies in no leaf")
+        L, K = m.cells.n_leaves, m.n_candidates
+        for name in ("V_explore", "V_exploit", "Q_explore", "Q_exploit", "Q_greedy"):
+            shape = (L,) if name[0] == "V" else (L, K)
+            value = np.asarray(arrays[name])
+            if value.dtype.kind not in "f" or value.shape[1:] != shape[1:]:
+                raise bad(f"{name} has shape {value.shape} of dtype {value.dtype}")
+            rows = value.shape[0]
+            if rows != L and not (m.changed and rows < L):  # stale plans: solved again first
+                raise bad(f"{name} has {rows} rows for {L} leaves")
+            if (
+                np.any(np.isnan(value))
+                or np.any(value == np.inf)
+                or (name[0] == "V" and not np.all(np.isfinite(value)))
+            ):
+                raise bad(f"{name} holds NaN or infinite values")
+            pad = np.zeros((L - rows, *shape[1:]))
+            setattr(m, name, np.concatenate([value.astype(np.float64), pad]))
         m._set_typical_moves()
         return m
 
 
-def _around(a: np.ndarray) -> np.ndarray:
-    """Sum over the ``3^d`` grid cells around each cell (``a``'s last axis: candidates)."""
-    out = a
-    for ax in range(a.ndim - 1):
-        pad = [(1, 1) if i == ax else (0, 0) for i in range(a.ndim)]
-        p, n = np.pad(out, pad), out.shape[ax]
-        shifted = [p[tuple(slice(s, s + n) if i == ax else slice(None) for i in range(a.ndim))]
-                   for s in range(3)]  # fmt: skip
-        out = shifted[0] + shifted[1] + shifted[2]
+def _choices(k: Any, n: int, K: int) -> IntArray:
+    """Candidate indices ``[n]`` in ``[0, K)`` (``ValueError`` otherwise)."""
+    raw = np.asarray(k)
+    if raw.shape != (n,) or (raw.size and raw.dtype.kind not in "iu"):
+        raise ValueError(f"choices must be {n} integer candidate indices, got shape "
+                         f"{raw.shape} of dtype {raw.dtype}")  # fmt: skip
+    out = raw.astype(np.int64)
+    if np.any(out < 0) or np.any(out >= K):
+        raise ValueError(f"a choice is not a candidate index in [0, {K})")
+    return out
+
+
+def _flags(terminated: Any, n: int) -> np.ndarray:
+    """Termination flags ``[n]`` (bool, or numbers 0 and 1)."""
+    raw = np.asarray(terminated)
+    ok = raw.shape == (n,) and raw.dtype.kind in "biuf" and bool(np.all((raw == 0) | (raw == 1)))
+    if not ok:
+        raise ValueError(f"terminated must be {n} flags (True / False), got {raw!r:.80}")
+    return raw.astype(bool).copy()
+
+
+def _around(cells: CellTree, starts: IntArray, values: FloatArray) -> FloatArray:
+    """Sums ``[R, w]`` over the ``3^d`` grid cells around each of ``cells``' roots of the
+    ``values [C, w]`` of the grid cells ``starts [C, d]`` (the others hold 0).
+
+    The terms are added as a dense grid's shifted sums would add them (one axis after
+    the other, each as ``(cell - 1 + cell) + cell + 1``), so the sums have the same bits;
+    only the pairs of a root and a grid cell next to it are visited, so memory and time
+    follow the data, never ``3^d`` or the box.
+    """
+    R = cells.n_roots
+    root, row = cells.neighbour_pairs(starts)
+    if root.size == 0:
+        return np.zeros((R, values.shape[1]))
+    offset = starts[row] - cells.root_grid[root]  # [m, d] in {-1, 0, 1}
+    value = values[row].astype(np.float64)
+    for ax in range(cells.dim):
+        if not np.any(offset[:, ax]):
+            continue  # (0 + x) + 0 is x
+        keys = np.column_stack([root, offset[:, ax + 1 :]])
+        groups, group = np.unique(keys, axis=0, return_inverse=True)
+        slot = np.zeros((len(groups), 3, value.shape[1]))
+        slot[group.reshape(-1), offset[:, ax] + 1] = value
+        value = (slot[:, 0] + slot[:, 1]) + slot[:, 2]
+        root, offset = groups[:, 0], np.column_stack([np.zeros((len(groups), ax + 1), np.int64),
+                                                      groups[:, 1:]])  # fmt: skip
+    out = np.zeros((R, values.shape[1]))
+    out[root] = value
     return out

@@ -139,7 +139,7 @@ def test_a_failure_end_is_evidence_about_its_place_not_a_goal() -> None:
     """A pit (reward -100, the episode ends) seen first: the frontier stays optimistic,
     no route is known, and a goal seen later is a goal."""
     S = np.array([[0.1, 0.1], [0.2, 0.1], [0.3, 0.1]])
-    S2 = S + [0.1, 0.0]
+    S2 = S + np.array([0.1, 0.0])
     m = StateMap(np.zeros(2), np.ones(2), np.array([[1.0, 0], [-1.0, 0]]), 0.9, S,
                  np.zeros(3, np.int64), [-1.0, -1.0, -100.0], S2, [False, False, True])  # fmt: skip
     assert m._frontier() == m.bounds()[1] == 0.0
@@ -223,7 +223,7 @@ def test_a_damaged_map_array_is_an_archive_error_at_load(name: str, tmp_path: Pa
     DAMAGE[name](arrays)
     bad = tmp_path / "bad.npz"
     np.savez(bad, **arrays)
-    with pytest.raises(ArchiveError, match="exploration.map"):
+    with pytest.raises(ArchiveError, match=r"exploration.map"):
         GPQAgent.load(bad, env=MovingPoint(goal=(0.5, 0.5)))
 
 

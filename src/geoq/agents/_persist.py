@@ -7,6 +7,14 @@ targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``,
 is JSON (config, scaling, env id, seed, generator state, standardisation,
 counters). Optional meta keys added after version 1 default to a fresh agent's
 values, so older files load.
+
+The stored config is resolved on loading exactly as a new agent's is
+(:meth:`GPQConfig.for_dims`: a hand-edited ``"auto"`` or ``max_bv: null`` becomes
+what an agent of those settings holds) and checked against the rest of the file:
+the GP's budget, noise and novelty threshold, its kernel (kind and hyper-parameters:
+those the config makes with the length-scales in use and the stored scaling's
+periods) and the fitted length-scales; a mismatch is an :class:`ArchiveError` that
+names the field.
 """
 
 from __future__ import annotations
@@ -19,10 +27,13 @@ import gymnasium
 import numpy as np
 
 from geoq._io import ArchiveError, load_archive, save_archive
+from geoq._typing import FloatArray
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.config import GPQConfig, check_seed
+from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.state import LearningState, TrainingLog
 from geoq.gp import SparseOnlineGP
+from geoq.kernels.base import kernel_to_arrays
 from geoq.learners.scaling import InputScaling
 
 if TYPE_CHECKING:
@@ -32,6 +43,23 @@ __all__ = ["load_agent", "save_agent"]
 
 _ARCHIVE_KIND = "GPQAgent"
 _ARCHIVE_VERSION = 1
+
+#: Config fields a file written before them lacks, and the value its code behaved as:
+#: phases every ``train_every`` steps, length-scales by the rule.
+_LEGACY_CONFIG: dict[str, Any] = {"train_fraction": 0.0, "hyperparameters": "rule"}
+
+#: The config field (or file entry) behind each of a kernel's saved hyper-parameters
+#: (:func:`geoq.kernels.base.kernel_to_arrays` keys without ``kernel.``); the others
+#: are the state a kernel follows its basis with (graph nodes, paths, ...), unchecked.
+_KERNEL_FIELDS = {
+    "class": "kernel", "distance": "kernel", "distance.method": "kernel",
+    "distance.normalize": "kernel", "distance.attach": "kernel",
+    "distance.graph.edge_weight": "kernel", "distance.graph.temporal_edges": "kernel",
+    "variance": "amplitude", "distance.sigma_sp": "sigma_sp", "distance.sigma_se": "sigma_se",
+    "distance.graph.eps": "eps", "distance.lengthscale": "resistance_lengthscale",
+    "lengthscale": "lengthscale (or state_lengthscale / action_lengthscale, fitted_lengthscale)",
+    "period": "scaling periods", "distance.graph.period": "scaling periods",
+}  # fmt: skip
 
 
 def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
@@ -65,8 +93,7 @@ def load_agent(
     _, a = load_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION)
     try:
         meta = json.loads(str(a["meta"]))
-        # A file from before train_fraction ran its phases every train_every steps.
-        config = GPQConfig.from_dict({"train_fraction": 0.0, **meta["config"]})
+        config = GPQConfig.from_dict({**_LEGACY_CONFIG, **meta["config"]})
         sc = meta["scaling"]
         scaling = InputScaling(tuple(sc["scale"]), tuple(sc["periods"]), tuple(sc["names"]))
         box = np.asarray(a["action_box"], dtype=np.float64)
@@ -101,10 +128,8 @@ def load_agent(
     ):  # fmt: skip
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive; save it again")
     try:
-        config.for_dims(obs_dim, d_a)  # the length-scales' count
-        fitted = state.fitted_lengthscale
-        if fitted is not None and len(fitted) != obs_dim + d_a:
-            raise ValueError(f"{len(fitted)} fitted length-scales for {obs_dim + d_a} inputs")
+        config = config.for_dims(obs_dim, d_a)  # as a new agent's: "auto" and None resolved
+        check_config(config, gp, state, scaling, obs_dim, candidates)
     except ValueError as exc:
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent = cls.__new__(cls)
@@ -124,6 +149,7 @@ def load_agent(
             ) from exc
     try:  # files from before the map: none, as they explored
         agent.explorer.restore({k[9:]: v for k, v in a.items() if k.startswith("explorer/")})
+        _check_explorer(config, agent.explorer)
     except (KeyError, ValueError, TypeError) as exc:
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent.env = None
@@ -132,3 +158,66 @@ def load_agent(
     if env is not None:
         agent.set_env(env)
     return agent
+
+
+def check_config(
+    config: GPQConfig, gp: SparseOnlineGP, state: LearningState, scaling: InputScaling,
+    obs_dim: int, candidates: FloatArray,
+) -> None:  # fmt: skip
+    """A ``ValueError`` naming the field unless the resolved ``config`` is what made ``gp``,
+    ``state`` and ``candidates`` ``[K, d_a]`` (an agent of ``obs_dim`` + ``d_a`` inputs
+    scaled by ``scaling``): the candidates' count, the GP's budget, noise, novelty
+    threshold and input width, its kernel's kind and hyper-parameters, and the fitted
+    length-scales' count and origin."""
+    n, action_dim = candidates.shape
+    k = config.n_candidates if action_dim == 1 else 2 ** int(np.ceil(np.log2(config.n_candidates)))
+    if n != k:
+        raise ValueError(f"config n_candidates is {config.n_candidates} but the file holds {n} "
+                         f"candidate actions, not {k}")  # fmt: skip
+    d = obs_dim + action_dim
+    for name, value in (("max_bv", gp.max_bv), ("noise", gp.noise), ("tol", gp.tol)):
+        if getattr(config, name) != value:
+            raise ValueError(
+                f"config {name} is {getattr(config, name)!r} but the stored GP's is {value!r}"
+            )
+    if gp.n_bv and gp.basis_vectors.shape[1] != d:
+        raise ValueError(f"the stored GP's inputs have {gp.basis_vectors.shape[1]} dimensions, "
+                         f"not {d}")  # fmt: skip
+    fitted = state.fitted_lengthscale
+    if fitted is not None and len(fitted) != d:
+        raise ValueError(f"fitted_lengthscale has {len(fitted)} entries for {d} inputs")
+    if fitted is not None and config.hyperparameters != "evidence":
+        raise ValueError(
+            f"fitted_lengthscale is set but config hyperparameters is {config.hyperparameters!r} "
+            "(length-scales are fitted only with 'evidence')"
+        )
+    lengthscale = config.rule_lengthscale(obs_dim, action_dim) if fitted is None else fitted
+    periodic = np.any(np.asarray(scaling.periods) > 0)
+    made = config.make_kernel(lengthscale, scaling.scaled_periods() if periodic else None)
+    expected, stored = kernel_to_arrays(made, ""), kernel_to_arrays(gp.kernel, "")
+    for key, field in _KERNEL_FIELDS.items():
+        want, got = expected.get(key), stored.get(key)
+        if want is None or got is None:
+            same = want is None and got is None
+        else:
+            same = np.shape(want) == np.shape(got) and bool(np.array_equal(want, got))
+        if not same:
+            raise ValueError(
+                f"the stored GP's kernel has {key} {_show(got)} where the config makes "
+                f"{_show(want)} (config field: {field})"
+            )
+
+
+def _check_explorer(config: GPQConfig, explorer: MapExplorer) -> None:
+    """A ``ValueError`` naming ``explore_map`` if the restored map contradicts it: ``off``
+    has none (and has decided so), ``on`` has one once decided."""
+    mode, has_map = config.explore_map, explorer.map is not None
+    if (mode == "off" and (has_map or not explorer.decided)) or (
+        mode == "on" and explorer.decided and not has_map
+    ):
+        state = "a map" if has_map else ("no map" if explorer.decided else "no map yet")
+        raise ValueError(f"config explore_map is {mode!r} but the file holds {state}")
+
+
+def _show(value: Any) -> str:
+    return "none" if value is None else repr(np.asarray(value).tolist())

@@ -6,6 +6,11 @@ and the map alone: the ``auto`` run's own transitions replayed into a fresh
 :class:`~geoq.agents.state_map.StateMap`, ``observe`` and ``plan`` at every step as in
 ``learn``. Goal (issue 28): 2,000 TwoRooms steps in <= 60 s.
 
+Hostile observation spaces (issue 45), ``explore_map="on"`` against ``"off"``, 100
+steps each: TwoRooms declared in a box of +-1e5 (goal: under 2 s) and TwoRooms with 48
+constant features (goal: at most 5x the cost without the map). Before the sparse grid
+the first raised ``MemoryError`` and the second took minutes.
+
     python benchmarks/run.py explore_map
 """
 
@@ -13,6 +18,10 @@ from __future__ import annotations
 
 import time
 import warnings
+
+import gymnasium
+import numpy as np
+from gymnasium.wrappers import TransformObservation
 
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent
@@ -36,6 +45,24 @@ def _map_alone(agent: GPQAgent) -> float:
     return time.perf_counter() - start
 
 
+def _hostile(extra: int, bound: float) -> gymnasium.Env:
+    """TwoRooms observed with ``extra`` constant features, in a declared box of +-``bound``."""
+    box = gymnasium.spaces.Box(-bound, bound, shape=(2 + extra,), dtype=np.float64)
+    grow = lambda o: np.concatenate([o, np.full(extra, 0.5)])  # noqa: E731
+    return TransformObservation(gymnasium.make(TWO_ROOMS_ID), grow, box)
+
+
+def _hostile_table(steps: int) -> None:
+    for name, extra, bound in (("+-1e5 box", 0, 1e5), ("48 constant features", 48, 1.0)):
+        seconds = {}
+        for mode in ("off", "on"):
+            start = time.perf_counter()
+            GPQAgent(_hostile(extra, bound), seed=0, explore_map=mode).learn(steps)
+            seconds[mode] = time.perf_counter() - start
+        print(f"{name:22} {steps} steps: off {seconds['off']:5.2f} s, on {seconds['on']:5.2f} s, "
+              f"on / off {seconds['on'] / seconds['off']:.2f}x")  # fmt: skip
+
+
 def main(quick: bool = False) -> None:
     """``quick``: tiny sizes, figures of no meaning (``benchmarks/run.py --quick``)."""
     warnings.simplefilter("ignore")
@@ -55,3 +82,4 @@ def main(quick: bool = False) -> None:
           f"({1e3 * alone / steps:.1f} ms/step), {leaves} leaves")  # fmt: skip
     print(f"ratios: auto / off {seconds['auto'] / seconds['off']:.2f}x; "
           f"map / auto learn {alone / seconds['auto']:.2f}")  # fmt: skip
+    _hostile_table(100)

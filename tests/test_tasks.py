@@ -6,7 +6,7 @@ import gymnasium
 import numpy as np
 import pytest
 
-from geoq.tasks import TaskInfo, box_scaling, data_scaling, has_finite_bounds
+from geoq.tasks import TaskInfo, box_scaling, data_scaling, has_finite_bounds, task_info
 
 
 def test_data_scaling_uses_bounds_where_finite_and_robust_spread_elsewhere() -> None:
@@ -35,3 +35,14 @@ def test_data_scaling_uses_bounds_where_finite_and_robust_spread_elsewhere() -> 
         data_scaling(np.full((2, 3), np.nan), obs, act, info)
     with pytest.raises(ValueError, match="infinite bounds"):
         box_scaling(obs, act, info)
+
+
+def test_a_known_task_whose_observations_a_wrapper_reshaped_is_unknown() -> None:
+    """TwoRooms observed with 3 more features: its names and periods are of 2 inputs."""
+    box = gymnasium.spaces.Box(-1.0, 1.0, shape=(5,), dtype=np.float64)
+    env = gymnasium.wrappers.TransformObservation(
+        gymnasium.make("geoq/TwoRooms-v0"), lambda o: np.concatenate([o, np.zeros(3)]), box
+    )
+    info = task_info(env)
+    assert info.periods == (0.0,) * 5 and info.names == ("s0", "s1", "s2", "s3", "s4")
+    assert task_info(gymnasium.make("geoq/TwoRooms-v0")).names != info.names

@@ -96,12 +96,15 @@ def task_info(env: gymnasium.Env, periods: Sequence[float] | None = None) -> Tas
 
     ``periods`` (raw units, one per observation dimension, ``0`` = not
     periodic) overrides what is known. An unknown task without ``periods`` has
-    none.
+    none. A known task whose observations a wrapper reshaped is not known: what is known
+    of it (periods, names, rewards) is of observations it no longer gives.
     """
     space = env.observation_space
     d = int(np.prod(space.shape)) if space.shape is not None else 0
     spec = env.spec
     known = KNOWN_TASKS.get(spec.id) if spec is not None else None
+    if known is not None and len(known.names) != d:  # a wrapper changed the observations
+        known = None
     names = known.names if known is not None else tuple(f"s{i}" for i in range(d))
     if periods is None:
         return known if known is not None else TaskInfo(periods=(0.0,) * d, names=names)

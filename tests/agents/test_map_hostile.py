@@ -16,8 +16,8 @@ from tests.agents._tasks import MovingPoint, TwoRoomsWithPit
 import geoq  # noqa: F401  (registers the envs)
 from geoq._io import ArchiveError
 from geoq.agents import GPQAgent
-from geoq.agents.map_cells import CellTree
-from geoq.agents.state_map import MapSettings, StateMap, _around
+from geoq.agents.map_cells import CellTree, around_sums
+from geoq.agents.state_map import MapSettings, StateMap
 
 F32_MAX = float(np.finfo(np.float32).max)
 
@@ -53,7 +53,7 @@ def test_the_neighbourhood_sums_are_a_dense_grids_bit_for_bit(data: st.DataObjec
     dense = np.zeros((*shape, w))
     dense[tuple(starts.T)] = values
     expected = _dense_around(dense)[tuple(tree.root_grid.T)]
-    got = _around(tree, starts.reshape(-1, d).astype(np.int64), values)
+    got = around_sums(tree, starts.reshape(-1, d).astype(np.int64), values)
     np.testing.assert_array_equal(got, expected)  # the same bits, not only close
 
 

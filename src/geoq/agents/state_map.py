@@ -59,67 +59,19 @@ builds it only there.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from geoq._typing import FloatArray, IntArray
-from geoq._validation import (
-    as_float_matrix,
-    as_float_point,
-    as_float_vector,
-    check_int,
-    check_real,
-)
+from geoq._validation import as_float_matrix, as_float_point, as_float_vector, check_real
 from geoq.agents._map_model import LeafModel
-from geoq.agents.map_cells import CellTree
+from geoq.agents._map_persist import check_choices, check_flags, map_from_arrays
+from geoq.agents.map_cells import CellTree, around_sums
+from geoq.agents.map_settings import MapSettings
 
 __all__ = ["MapSettings", "StateMap"]
-
-
-@dataclass(frozen=True)
-class MapSettings:
-    """The map's constants (docs/exploration.md, prototype 4, where each was measured)."""
-
-    side_scale: float = 3.0
-    """Grid side, in 0.9-quantiles of the observed ``|s' - s|`` per dimension."""
-    quantile: float = 0.9
-    """The quantile of the moves that reads "a typical move" (cell side, blocked test)."""
-    blocked_fraction: float = 0.25
-    """A move shorter than this x its candidate's typical move is blocked."""
-    min_split_fraction: float = 1 / 16
-    """No leaf narrower than this x the grid side."""
-    blocked_cos: float = 0.7
-    """An untried move is predicted blocked where one at this cosine or more was."""
-    max_macro: int = 50
-    """Most steps a predicted move is repeated to leave its leaf."""
-    route_margin: float = 0.05
-    """The exploit plan knows a route from a leaf valued above the lower bound by this
-    fraction of the value range."""
-    nearest_tries: bool = True
-    """The greedy policy judges a move at a state by the nearest try of a move like it
-    (within one typical move) as well as by its leaf's plan (:meth:`StateMap.greedy`)."""
-    tol: float = 1e-3
-    """Value iteration stops when no value moves more than this."""
-    max_sweeps: int = 2000
-    """Most sweeps of one value iteration."""
-
-    def __post_init__(self) -> None:
-        """Each constant's range, checked here (``ValueError`` naming it)."""
-        check_real(self.side_scale, "side_scale", low=0.0, low_open=True)
-        check_real(self.quantile, "quantile", low=0.0, high=1.0, low_open=True)
-        check_real(self.blocked_fraction, "blocked_fraction", low=0.0, high=1.0)
-        check_real(self.min_split_fraction, "min_split_fraction", low=0.0, high=1.0,
-                   low_open=True)  # fmt: skip
-        check_real(self.blocked_cos, "blocked_cos", low=-1.0, high=1.0)
-        check_int(self.max_macro, "max_macro", 1)
-        check_real(self.route_margin, "route_margin", low=0.0, high=1.0, high_open=True)
-        if not isinstance(self.nearest_tries, bool | np.bool_):
-            raise ValueError(f"nearest_tries must be True or False, got {self.nearest_tries!r}")
-        check_real(self.tol, "tol", low=0.0, low_open=True)
-        check_int(self.max_sweeps, "max_sweeps", 1)
 
 
 class StateMap:
@@ -161,9 +113,9 @@ class StateMap:
         if n == 0:
             raise ValueError("the map needs at least one transition: they fix its grid")
         self.S2 = as_float_matrix(next_states, "next_states", d).copy()
-        self.k = _choices(choices, n, self.n_candidates)
+        self.k = check_choices(choices, n, self.n_candidates)
         self.r = as_float_vector(rewards, "rewards", n).copy()
-        self.done = _flags(terminated, n)
+        self.done = check_flags(terminated, n)
         if len(self.S2) != n:
             raise ValueError(f"next_states has {len(self.S2)} rows; expected {n} (one per state)")
         moves = np.abs(self.S2 - self.S)
@@ -219,9 +171,9 @@ class StateMap:
         its (leaf, candidate), a split, a termination or a blocked move."""
         s = as_float_point(s, "s", self.cells.dim)
         s2 = as_float_point(s2, "s2", self.cells.dim)
-        k = int(_choices([k], 1, self.n_candidates)[0])
+        k = int(check_choices([k], 1, self.n_candidates)[0])
         r = float(as_float_vector([r], "r")[0])
-        terminated = bool(_flags([terminated], 1)[0])
+        terminated = bool(check_flags([terminated], 1)[0])
         c = int(self.cells.locate(s[None], create=True)[0])
         end = int(self.cells.locate(s2[None], create=True)[0])
         same = (self.leaf_s == c) & (self.k == k)
@@ -334,7 +286,7 @@ class StateMap:
         weights = [*(self.S2[moved] - self.S[moved]).T, self.r[moved], self.done[moved]]
         per_cell = [np.bincount(idx, minlength=C * K).reshape(C, K)]
         per_cell += [np.bincount(idx, weights=w, minlength=C * K).reshape(C, K) for w in weights]
-        around = _around(cells, starts, np.concatenate(per_cell, axis=1))  # [R, (d + 3) K]
+        around = around_sums(cells, starts, np.concatenate(per_cell, axis=1))  # [R, (d + 3) K]
         count, *sums = np.split(around, d + 3, axis=1)
         count = count.astype(np.int64)
         every_count = np.bincount(self.k[moved], minlength=K)
@@ -524,123 +476,5 @@ class StateMap:
     @classmethod
     def from_arrays(cls, arrays: dict[str, Any], settings: MapSettings | None = None) -> StateMap:
         """A map from :meth:`to_arrays`' output; ``ValueError`` naming the first array that
-        is inconsistent (every array is checked: a map that loads plans and acts).
-
-        A map saved with its plans out of date (``changed``; files written from inside
-        ``learn`` before the plans were brought up to date on save) loads too: its plans
-        are solved again before they are used, from the values it holds."""
-
-        def bad(what: str) -> ValueError:
-            return ValueError(f"inconsistent exploration map: {what}")
-
-        m = cls.__new__(cls)
-        m.settings = settings or MapSettings()
-        m.cells = CellTree.from_arrays(
-            {k[6:]: v for k, v in arrays.items() if k.startswith("cells/")}
-        )
-        if "Q_greedy" not in arrays and "Q_exploit" in arrays:  # saved before the greedy plan
-            arrays = {**arrays, "Q_greedy": arrays["Q_exploit"]}
-        missing = [name for name in (*cls._ARRAYS, "counters") if name not in arrays]
-        if missing:
-            raise bad(f"no {missing}")
-        d = m.cells.dim
-        try:
-            m.candidates = as_float_matrix(arrays["candidates"], "candidates")
-            m.S = as_float_matrix(arrays["S"], "S", d)
-            n = len(m.S)
-            m.S2 = as_float_matrix(arrays["S2"], "S2", d)
-            m.k = _choices(arrays["k"], n, len(m.candidates))
-            m.r = as_float_vector(arrays["r"], "r", n)
-            m.done = _flags(arrays["done"], n)
-            counters = as_float_vector(arrays["counters"], "counters")
-        except ValueError as exc:
-            raise bad(str(exc)) from None
-        if n == 0 or len(m.S2) != n or len(m.candidates) == 0:
-            raise bad("no transitions, or S2 not one per state")
-        if counters.shape not in ((4,), (6,)):
-            raise bad(f"counters has shape {counters.shape}")
-        # a map saved before the halving: none done, and none to do (it keeps on as it did)
-        gamma, changed, plans, sweeps, halvings, declared = (*counters, 0.0, 0.0)[:6]
-        if not 0.0 <= gamma < 1.0 or changed not in (0.0, 1.0) or declared not in (0.0, 1.0):
-            raise bad("counters: gamma outside [0, 1) or a flag that is not 0 or 1")
-        if any(c < 0 or c != int(c) for c in (plans, sweeps, halvings)):
-            raise bad("counters: a count that is not a whole number >= 0")
-        m.gamma, m.changed, m.plans, m.sweeps = float(gamma), bool(changed), int(plans), int(sweeps)
-        m.halvings, m.declared_box = int(halvings), bool(declared)
-        for name, points in (("leaf_s", m.S), ("leaf_s2", m.S2)):
-            leaves = np.asarray(arrays[name])
-            if leaves.shape != (n,) or not np.array_equal(leaves, m.cells.locate(points)):
-                raise bad(f"{name} is not the leaf of each point")
-            setattr(m, name, leaves.astype(np.int64))
-        if np.any(m.leaf_s < 0):
-            raise bad("a state lies in no leaf")
-        L, K = m.cells.n_leaves, m.n_candidates
-        for name in ("V_explore", "V_exploit", "Q_explore", "Q_exploit", "Q_greedy"):
-            shape = (L,) if name[0] == "V" else (L, K)
-            value = np.asarray(arrays[name])
-            if value.dtype.kind not in "f" or value.shape[1:] != shape[1:]:
-                raise bad(f"{name} has shape {value.shape} of dtype {value.dtype}")
-            rows = value.shape[0]
-            if rows != L and not (m.changed and rows < L):  # stale plans: solved again first
-                raise bad(f"{name} has {rows} rows for {L} leaves")
-            if (
-                np.any(np.isnan(value))
-                or np.any(value == np.inf)
-                or (name[0] == "V" and not np.all(np.isfinite(value)))
-            ):
-                raise bad(f"{name} holds NaN or infinite values")
-            pad = np.zeros((L - rows, *shape[1:]))
-            setattr(m, name, np.concatenate([value.astype(np.float64), pad]))
-        m._set_typical_moves()
-        return m
-
-
-def _choices(k: Any, n: int, K: int) -> IntArray:
-    """Candidate indices ``[n]`` in ``[0, K)`` (``ValueError`` otherwise)."""
-    raw = np.asarray(k)
-    if raw.shape != (n,) or (raw.size and raw.dtype.kind not in "iu"):
-        raise ValueError(f"choices must be {n} integer candidate indices, got shape "
-                         f"{raw.shape} of dtype {raw.dtype}")  # fmt: skip
-    out = raw.astype(np.int64)
-    if np.any(out < 0) or np.any(out >= K):
-        raise ValueError(f"a choice is not a candidate index in [0, {K})")
-    return out
-
-
-def _flags(terminated: Any, n: int) -> np.ndarray:
-    """Termination flags ``[n]`` (bool, or numbers 0 and 1)."""
-    raw = np.asarray(terminated)
-    ok = raw.shape == (n,) and raw.dtype.kind in "biuf" and bool(np.all((raw == 0) | (raw == 1)))
-    if not ok:
-        raise ValueError(f"terminated must be {n} flags (True / False), got {raw!r:.80}")
-    return raw.astype(bool).copy()
-
-
-def _around(cells: CellTree, starts: IntArray, values: FloatArray) -> FloatArray:
-    """Sums ``[R, w]`` over the ``3^d`` grid cells around each of ``cells``' roots of the
-    ``values [C, w]`` of the grid cells ``starts [C, d]`` (the others hold 0).
-
-    The terms are added as a dense grid's shifted sums would add them (one axis after
-    the other, each as ``(cell - 1 + cell) + cell + 1``), so the sums have the same bits;
-    only the pairs of a root and a grid cell next to it are visited, so memory and time
-    follow the data, never ``3^d`` or the box.
-    """
-    R = cells.n_roots
-    root, row = cells.neighbour_pairs(starts)
-    if root.size == 0:
-        return np.zeros((R, values.shape[1]))
-    offset = starts[row] - cells.root_grid[root]  # [m, d] in {-1, 0, 1}
-    value = values[row].astype(np.float64)
-    for ax in range(cells.dim):
-        if not np.any(offset[:, ax]):
-            continue  # (0 + x) + 0 is x
-        keys = np.column_stack([root, offset[:, ax + 1 :]])
-        groups, group = np.unique(keys, axis=0, return_inverse=True)
-        slot = np.zeros((len(groups), 3, value.shape[1]))
-        slot[group.reshape(-1), offset[:, ax] + 1] = value
-        value = (slot[:, 0] + slot[:, 1]) + slot[:, 2]
-        root, offset = groups[:, 0], np.column_stack([np.zeros((len(groups), ax + 1), np.int64),
-                                                      groups[:, 1:]])  # fmt: skip
-    out = np.zeros((R, values.shape[1]))
-    out[root] = value
-    return out
+        is inconsistent (:func:`geoq.agents._map_persist.map_from_arrays`)."""
+        return map_from_arrays(cls, arrays, settings)

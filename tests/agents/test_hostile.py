@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import copy
 import json
+import pickle
+import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -221,6 +224,117 @@ def test_learn_zero_changes_nothing_later_runs_depend_on(
     _assert_same(_learned(b), _learned(a))
     obs = np.linspace(-1, 1, 9)[:, None]
     np.testing.assert_array_equal(a.predict(obs)[0], b.predict(obs)[0])
+
+
+# ---------------------------------------------------------------- threads
+class _ShortEpisodes(PointToGoal):
+    """:class:`PointToGoal` cut after 3 steps: a reset, a phase and a callback every 3 steps."""
+
+    def step(self, action: np.ndarray) -> Any:
+        obs, reward, terminated, truncated, info = super().step(action)
+        truncated = truncated or (self._t >= 3 and not terminated)
+        return obs, reward, terminated, truncated, info
+
+
+THREADED_RUNS = {
+    # The map is built after 2 K = 128 steps and planned lazily: the IndexError's home.
+    "tworooms": (lambda: gymnasium.make("geoq/TwoRooms-v0"), {"max_bv": 60}, 360),
+    "short_episodes": (_ShortEpisodes, {"max_bv": 30, "train_every": 2}, 150),
+    "warmup": (lambda: _Bounds(-np.inf, 1.0), {"max_bv": 30, "warmup_steps": 40}, 120),
+}
+
+
+def _run_state(agent: GPQAgent) -> dict[str, Any]:
+    """:func:`_learned` and the posterior weights, less the GP's counts of what its
+    predictions repaired (they count calls; nothing reads them back to learn)."""
+    out = _learned(agent)
+    for key in ("predict_rescaled", "predict_clipped", "warned"):
+        del out["gp"][key]
+    out["alpha"] = agent.gp.alpha
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(THREADED_RUNS))
+def test_predict_from_another_thread_while_learning_never_raises_and_changes_nothing(
+    name: str, tmp_path: Path
+) -> None:
+    """``predict`` in one thread while ``learn`` ran in another raised ``IndexError`` (the
+    map's plans, the GP's arrays caught mid-step). Each learning step now holds the
+    agent's lock; a callback in the learning thread predicts and saves under it too (a
+    re-entrant lock); the run is bit for bit the one without them."""
+    make_env, kwargs, steps = THREADED_RUNS[name]
+    reference = GPQAgent(make_env(), seed=0, **kwargs).learn(steps)
+    agent = GPQAgent(make_env(), seed=0, **kwargs)
+    rng = np.random.default_rng(0)
+    obs = rng.uniform(-1, 1, size=(16, agent.obs_dim))
+    errors: list[BaseException] = []
+    calls = [0, 0]
+    stop = threading.Event()
+
+    def ask() -> None:
+        try:
+            while not stop.is_set():
+                agent.predict(obs, deterministic=True)
+                agent.predict(obs[0])
+                calls[0] += 1
+        except BaseException as exc:
+            errors.append(exc)
+
+    def callback(rec: Any) -> None:
+        agent.predict(obs)
+        agent.save(tmp_path / "inside.npz")
+        calls[1] += 1
+
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-5)  # hand the GIL over often: a race shows at once
+    thread = threading.Thread(target=ask, daemon=True)
+    thread.start()
+    try:
+        agent.learn(steps, callback=callback)
+    finally:
+        stop.set()
+        thread.join(timeout=60)
+        sys.setswitchinterval(switch)
+    assert not thread.is_alive()
+    assert not errors, repr(errors[0])
+    assert calls[0] >= 20 and calls[1] >= 1, calls
+    if name == "tworooms":
+        assert agent.explorer.map is not None
+    _assert_same(_run_state(reference), _run_state(agent))
+    GPQAgent.load(tmp_path / "inside.npz", env=make_env())  # saved whole, mid-learning
+
+
+@fuzz_settings(15)
+@given(
+    name=st.sampled_from(sorted(THREADED_RUNS)), steps=st.integers(0, 200),
+    exploration=st.sampled_from(["ucb", "thompson", "gaussian", "greedy"]),
+)  # fmt: skip
+def test_a_deterministic_predict_draws_nothing_from_the_generator(
+    name: str, steps: int, exploration: str
+) -> None:
+    """What lets other threads predict while the agent learns without changing its run:
+    before the warm-up, with and without a map, under every exploration mode."""
+    make_env, kwargs, _ = THREADED_RUNS[name]
+    agent = GPQAgent(make_env(), seed=1, exploration=exploration, **kwargs).learn(steps)  # type: ignore[arg-type]
+    before = _run_state(agent)
+    obs = np.random.default_rng(2).uniform(-1, 1, size=(9, agent.obs_dim))
+    for x in (obs, obs[0]):
+        agent.predict(x, deterministic=True)
+    _assert_same(before, _run_state(agent))
+    drawn = agent.rng.bit_generator.state
+    agent.predict(obs, deterministic=False)  # the exploration's draws, if any, are its own
+    if exploration == "greedy" and not agent.state.scaling_pending:
+        assert agent.rng.bit_generator.state == drawn
+
+
+def test_copies_and_pickles_get_their_own_lock_and_continue_alike() -> None:
+    agent = GPQAgent(PointToGoal(), max_bv=20, seed=0).learn(60)
+    twins = [copy.deepcopy(agent), pickle.loads(pickle.dumps(agent))]
+    assert all(t._lock is not agent._lock for t in twins)
+    agent.learn(40)
+    for twin in twins:
+        twin.learn(40)
+        _assert_same(_run_state(agent), _run_state(twin))
 
 
 # ---------------------------------------------------------------- spaces

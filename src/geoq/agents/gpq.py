@@ -43,10 +43,20 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    max diverged (targets of 3e5 after 9 episodes on the swing-up).
 
 ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
+
+**Threads.** One thread may learn while others ask the agent: each learning step
+(one env step, the fitted-Q phase it makes due, and at an episode's end its
+callback) holds the agent's lock (a re-entrant ``threading.RLock``, so a callback may
+call :meth:`GPQAgent.predict` or :meth:`GPQAgent.save`), and so do ``predict``,
+``q_candidates``, ``q_mean``, ``train``, ``save`` and ``set_env``: a call from another
+thread sees the agent between two steps, never inside one. ``predict(deterministic=True)``
+draws nothing from the agent's generator, so such calls leave the learning exactly as
+without them.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import fields
@@ -111,6 +121,8 @@ class GPQAgent:
     log : what it recorded while learning (:class:`TrainingLog`).
     phase : the fitted-Q phase (:class:`FittedQPhase`) with its replay strategy.
     explorer : the exploration map, once decided on (:class:`MapExplorer`).
+
+    Safe for one thread that learns and others that predict (module docstring, Threads).
     """
 
     def __init__(
@@ -158,6 +170,7 @@ class GPQAgent:
     ) -> None:
         # fmt: on
         """Set every attribute but ``gp`` and ``env`` (a new agent's or a loaded one's)."""
+        self._lock = threading.RLock()  # a learning step, predict, save: module docstring
         self.config, self.scaling, self.obs_dim = config, scaling, obs_dim
         self.action_low, self.action_high = action_box[0].copy(), action_box[1].copy()
         self.action_dim = self.action_low.shape[0]
@@ -203,15 +216,19 @@ class GPQAgent:
 
     def q_candidates(self, states: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Posterior mean and std of ``Q`` ``[n, K]`` at every state x candidate (one GP call)."""
-        mean, std = self.gp.predict(self._scaled_candidate_inputs(states), return_std=True)
-        n, st = states.shape[0], self.state
-        return (st.y_mean + st.y_scale * mean).reshape(n, -1), (st.y_scale * std).reshape(n, -1)
+        with self._lock:
+            mean, std = self.gp.predict(self._scaled_candidate_inputs(states), return_std=True)
+            y_mean, y_scale = self.state.y_mean, self.state.y_scale
+        n = states.shape[0]
+        return (y_mean + y_scale * mean).reshape(n, -1), (y_scale * std).reshape(n, -1)
 
     def q_mean(self, states: FloatArray) -> FloatArray:
         """Posterior mean of ``Q`` ``[n, K]`` at every state x candidate: the mean of
         :meth:`q_candidates` bit for bit, without the O(m^2)-per-point std."""
-        mean = self.gp.predict(self._scaled_candidate_inputs(states))
-        return (self.state.y_mean + self.state.y_scale * mean).reshape(states.shape[0], -1)
+        with self._lock:
+            mean = self.gp.predict(self._scaled_candidate_inputs(states))
+            y_mean, y_scale = self.state.y_mean, self.state.y_scale
+        return (y_mean + y_scale * mean).reshape(states.shape[0], -1)
 
     def _scaled_candidate_inputs(self, states: FloatArray) -> FloatArray:
         if self.state.scaling_pending:
@@ -232,15 +249,17 @@ class GPQAgent:
         """
         if not isinstance(deterministic, bool | np.bool_):
             raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
-        S, single = _env.as_observations(observation, self.obs_dim, self._obs_scale())
-        if self.state.scaling_pending:
-            a = _env.warmup_actions(self.action_low, self.action_high, len(S), deterministic,
-                                    self.rng)  # fmt: skip
-            return (a[0] if single else a), None
-        mean, std = self.q_candidates(S)
-        actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
-        actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
-        return (actions[0] if single else actions), None
+        with self._lock:  # between two learning steps of another thread
+            S, single = _env.as_observations(observation, self.obs_dim, self._obs_scale())
+            if self.state.scaling_pending:
+                a = _env.warmup_actions(self.action_low, self.action_high, len(S), deterministic,
+                                        self.rng)  # fmt: skip
+                return (a[0] if single else a), None
+            mean, std = self.q_candidates(S)
+            mode = "greedy" if deterministic else self.config.exploration
+            actions = self._act(mean, std, mode)
+            actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
+            return (actions[0] if single else actions), None
 
     def _act(self, mean: FloatArray, std: FloatArray, mode: Exploration) -> FloatArray:
         half = 0.5 * (self.action_high - self.action_low)
@@ -289,7 +308,8 @@ class GPQAgent:
         episode cut short by ``total_timesteps`` is not recorded. A step the env answers
         wrongly (:func:`~geoq.agents._env.env_step`) raises a ``ValueError`` and is not
         taken: the agent stays as after the step before (as before the call if none).
-        ``learn(0)`` takes no step and changes nothing (no draw, no phase).
+        ``learn(0)`` takes no step and changes nothing (no draw, no phase). Each step holds
+        the agent's lock (module docstring, Threads): other threads may predict meanwhile.
         """
         check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
@@ -298,25 +318,28 @@ class GPQAgent:
         if total_timesteps == 0:  # no episode to seed, no step to train on
             return self
         bar = _env.make_progress_bar(total_timesteps) if progress_bar else None
-        start, n_before = self.rng.bit_generator.state, self.num_timesteps
-        # Later episodes continue the env's own generator, seeded at the first reset.
-        seed: int | None = int(self.rng.integers(2**32))
+        with self._lock:
+            start, n_before = self.rng.bit_generator.state, self.num_timesteps
+            # Later episodes continue the env's own generator, seeded at the first reset.
+            seed: int | None = int(self.rng.integers(2**32))
         remaining, stop = int(total_timesteps), False
         try:
             while remaining > 0 and not stop:
                 steps, stop = self._collect_episode(env, seed, remaining, bar, callback)
                 remaining, seed = remaining - steps, None
         except BaseException:
-            if self.num_timesteps == n_before:  # no step taken: the generator as it was
-                self.rng.bit_generator.state = start
+            with self._lock:
+                if self.num_timesteps == n_before:  # no step taken: the generator as it was
+                    self.rng.bit_generator.state = start
             raise
         finally:
             if bar is not None:
                 bar.close()
-        last = self.log.episodes[-1].timesteps if self.log.episodes else None
-        if len(self.buffer) and not self.state.scaling_pending and last != self.num_timesteps:
-            self.train()  # the steps of an unfinished episode
-        self.explorer.plan()
+        with self._lock:
+            last = self.log.episodes[-1].timesteps if self.log.episodes else None
+            if len(self.buffer) and not self.state.scaling_pending and last != self.num_timesteps:
+                self.train()  # the steps of an unfinished episode
+            self.explorer.plan()
         return self
 
     def _collect_episode(
@@ -328,24 +351,27 @@ class GPQAgent:
         callback: Callback,
     ) -> tuple[int, bool]:
         """One episode, or its first ``max_steps`` steps, learning online and training when
-        a phase is due; returns the steps taken and whether the callback asked to stop."""
-        s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
-        q = self._q_or_none(s)
+        a phase is due; returns the steps taken and whether the callback asked to stop.
+        Each step (with its phase and, at the end, the callback) holds the agent's lock."""
+        with self._lock:
+            s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
+            q = self._q_or_none(s)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
-            step, q = self._observe(env, s, q, first=steps == 0)
-            steps, ep_return = steps + 1, ep_return + step.reward
-            if bar is not None:
-                bar.update(1)
-            over = step.terminated or step.truncated
-            if (self._phase_due() or over) and not self.state.scaling_pending:
-                self.train()
-                q = None if over else self.q_candidates(step.next_state)
-            if over:
-                n = len(self.episodes) + 1
-                rec = EpisodeRecord(self.num_timesteps, n, ep_return, step.success)
-                self.log.episodes.append(rec)
-                return steps, callback is not None and callback(rec) is False
+            with self._lock:
+                step, q = self._observe(env, s, q, first=steps == 0)
+                steps, ep_return = steps + 1, ep_return + step.reward
+                if bar is not None:
+                    bar.update(1)
+                over = step.terminated or step.truncated
+                if (self._phase_due() or over) and not self.state.scaling_pending:
+                    self.train()
+                    q = None if over else self.q_candidates(step.next_state)
+                if over:
+                    n = len(self.episodes) + 1
+                    rec = EpisodeRecord(self.num_timesteps, n, ep_return, step.success)
+                    self.log.episodes.append(rec)
+                    return steps, callback is not None and callback(rec) is False
             s = step.next_state
         return steps, False
 
@@ -427,20 +453,22 @@ class GPQAgent:
 
         Its wall time is added to ``log.train_seconds`` (the compute cost of replay).
         """
-        st = self.state
-        if st.scaling_pending:
-            return 0
-        st.last_train_timestep = st.num_timesteps
-        t0 = time.perf_counter()
-        if st.data_scaled and self.env is not None:  # the states' spread outgrew the scale?
-            if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
-                self._rescale_from_data()
-        if self.config.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
-            refit_lengthscales(self)
-        try:
-            return self._train()
-        finally:
-            self.log.train_seconds += time.perf_counter() - t0
+        with self._lock:
+            st = self.state
+            if st.scaling_pending:
+                return 0
+            st.last_train_timestep = st.num_timesteps
+            t0 = time.perf_counter()
+            if st.data_scaled and self.env is not None:  # the states' spread outgrew the scale?
+                if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
+                    self._rescale_from_data()
+            c = self.config
+            if c.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
+                refit_lengthscales(self)
+            try:
+                return self._train()
+            finally:
+                self.log.train_seconds += time.perf_counter() - t0
 
     @single_blas_thread
     def _train(self) -> int:
@@ -477,7 +505,8 @@ class GPQAgent:
     # ------------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:
         """Save the agent (config, GP, transitions, state, log, generator state) as ``.npz``."""
-        save_agent(self, path)
+        with self._lock:  # between two learning steps of another thread
+            save_agent(self, path)
 
     @classmethod
     def load(cls, path: str | PathLike[str], env: gymnasium.Env | str | None = None) -> GPQAgent:
@@ -491,7 +520,19 @@ class GPQAgent:
 
     def set_env(self, env: gymnasium.Env | str) -> None:
         """Attach an env whose spaces match the agent's."""
-        self.env = _env.matching_env(env, self.obs_dim, self.action_low, self.action_high)
+        matching = _env.matching_env(env, self.obs_dim, self.action_low, self.action_high)
+        with self._lock:
+            self.env = matching
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Copies (``copy.deepcopy``, pickling) leave out the lock; each gets its own."""
+        state = dict(self.__dict__)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.RLock()
 
     def __repr__(self) -> str:
         return (

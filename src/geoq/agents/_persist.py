@@ -129,7 +129,7 @@ def load_agent(
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive; save it again")
     try:
         config = config.for_dims(obs_dim, d_a)  # as a new agent's: "auto" and None resolved
-        check_config(config, gp, state, scaling, obs_dim, candidates)
+        _check_config(config, gp, state, scaling, obs_dim, candidates)
     except ValueError as exc:
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent = cls.__new__(cls)
@@ -160,7 +160,7 @@ def load_agent(
     return agent
 
 
-def check_config(
+def _check_config(
     config: GPQConfig, gp: SparseOnlineGP, state: LearningState, scaling: InputScaling,
     obs_dim: int, candidates: FloatArray,
 ) -> None:  # fmt: skip
@@ -191,9 +191,8 @@ def check_config(
             f"fitted_lengthscale is set but config hyperparameters is {config.hyperparameters!r} "
             "(length-scales are fitted only with 'evidence')"
         )
-    lengthscale = config.rule_lengthscale(obs_dim, action_dim) if fitted is None else fitted
-    periodic = np.any(np.asarray(scaling.periods) > 0)
-    made = config.make_kernel(lengthscale, scaling.scaled_periods() if periodic else None)
+    lengthscale = config.lengthscale_in_use(obs_dim, action_dim, state)
+    made = config.agent_kernel(lengthscale, scaling)  # as GPQAgent._new_gp makes it
     expected, stored = kernel_to_arrays(made, ""), kernel_to_arrays(gp.kernel, "")
     for key, field in _KERNEL_FIELDS.items():
         want, got = expected.get(key), stored.get(key)

@@ -16,9 +16,10 @@ from geoq._typing import FloatArray
 from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
-from geoq.agents.state import as_range, check_value_bounds, value_bounds
+from geoq.agents.state import LearningState, as_range, check_value_bounds, value_bounds
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
+from geoq.learners.scaling import InputScaling
 
 __all__ = [
     "HYPERPARAMETERS",
@@ -327,6 +328,21 @@ class GPQConfig:
             resistance_lengthscale=self.resistance_lengthscale, period=period,
             attach_weights=self.kernel == "interpolated",
         )  # fmt: skip
+
+    def agent_kernel(self, lengthscale: float | tuple[float, ...], scaling: InputScaling) -> Kernel:
+        """The kernel of an agent's GP: :meth:`make_kernel` with the periods of the inputs
+        ``scaling`` wraps (scaled units; none if no input wraps)."""
+        periodic = np.any(np.asarray(scaling.periods) > 0)
+        return self.make_kernel(lengthscale, scaling.scaled_periods() if periodic else None)
+
+    def lengthscale_in_use(
+        self, obs_dim: int, action_dim: int, state: LearningState
+    ) -> float | tuple[float, ...]:
+        """The squared exponential's length-scale(s) of an agent in ``state``: those fitted by
+        evidence if any, else :meth:`rule_lengthscale`."""
+        if state.fitted_lengthscale is not None:
+            return state.fitted_lengthscale
+        return self.rule_lengthscale(obs_dim, action_dim)
 
     def rule_lengthscale(self, obs_dim: int, action_dim: int) -> float | tuple[float, ...]:
         """The squared exponential's length-scale(s) by the rule: ``lengthscale``, or

@@ -44,14 +44,10 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 
 ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
 
-**Threads.** One thread may learn while others ask the agent: each learning step
-(one env step, the fitted-Q phase it makes due, and at an episode's end its
-callback) holds the agent's lock (a re-entrant ``threading.RLock``, so a callback may
-call :meth:`GPQAgent.predict` or :meth:`GPQAgent.save`), and so do ``predict``,
-``q_candidates``, ``q_mean``, ``train``, ``save`` and ``set_env``: a call from another
-thread sees the agent between two steps, never inside one. ``predict(deterministic=True)``
-draws nothing from the agent's generator, so such calls leave the learning exactly as
-without them.
+**Threads.** A learning step (an env step, its fitted-Q phase, an episode's callback) holds
+the agent's re-entrant lock, as do ``predict``, ``q_candidates``, ``q_mean``, ``train``,
+``save``, ``set_env``: other threads see the agent between steps (a callback may predict and
+save). ``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
 """
 
 from __future__ import annotations
@@ -121,8 +117,6 @@ class GPQAgent:
     log : what it recorded while learning (:class:`TrainingLog`).
     phase : the fitted-Q phase (:class:`FittedQPhase`) with its replay strategy.
     explorer : the exploration map, once decided on (:class:`MapExplorer`).
-
-    Safe for one thread that learns and others that predict (module docstring, Threads).
     """
 
     def __init__(
@@ -199,14 +193,10 @@ class GPQAgent:
         return self.log.episodes
 
     def _lengthscale(self) -> float | tuple[float, ...]:
-        if self.state.fitted_lengthscale is not None:
-            return self.state.fitted_lengthscale
-        return self.config.rule_lengthscale(self.obs_dim, self.action_dim)
+        return self.config.lengthscale_in_use(self.obs_dim, self.action_dim, self.state)
 
     def _new_gp(self) -> SparseOnlineGP:
-        c, sc = self.config, self.scaling
-        period = sc.scaled_periods() if np.any(np.asarray(sc.periods) > 0) else None
-        kernel = c.make_kernel(self._lengthscale(), period)
+        c, kernel = self.config, self.config.agent_kernel(self._lengthscale(), self.scaling)
         return SparseOnlineGP(kernel, noise=c.noise, max_bv=self.max_bv, tol=c.tol)
 
     # ------------------------------------------------------------------ inputs
@@ -218,8 +208,7 @@ class GPQAgent:
         """Posterior mean and std of ``Q`` ``[n, K]`` at every state x candidate (one GP call)."""
         with self._lock:
             mean, std = self.gp.predict(self._scaled_candidate_inputs(states), return_std=True)
-            y_mean, y_scale = self.state.y_mean, self.state.y_scale
-        n = states.shape[0]
+            y_mean, y_scale, n = self.state.y_mean, self.state.y_scale, states.shape[0]
         return (y_mean + y_scale * mean).reshape(n, -1), (y_scale * std).reshape(n, -1)
 
     def q_mean(self, states: FloatArray) -> FloatArray:
@@ -227,8 +216,7 @@ class GPQAgent:
         :meth:`q_candidates` bit for bit, without the O(m^2)-per-point std."""
         with self._lock:
             mean = self.gp.predict(self._scaled_candidate_inputs(states))
-            y_mean, y_scale = self.state.y_mean, self.state.y_scale
-        return (y_mean + y_scale * mean).reshape(states.shape[0], -1)
+            return (self.state.y_mean + self.state.y_scale * mean).reshape(states.shape[0], -1)
 
     def _scaled_candidate_inputs(self, states: FloatArray) -> FloatArray:
         if self.state.scaling_pending:
@@ -256,8 +244,7 @@ class GPQAgent:
                                         self.rng)  # fmt: skip
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
-            mode = "greedy" if deterministic else self.config.exploration
-            actions = self._act(mean, std, mode)
+            actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None
 
@@ -292,12 +279,8 @@ class GPQAgent:
         return self.state.value_bounds(self.config.gamma)
 
     @single_blas_thread
-    def learn(
-        self,
-        total_timesteps: int,
-        progress_bar: bool = False,
-        callback: Callback = None,
-    ) -> GPQAgent:
+    def learn(self, total_timesteps: int, progress_bar: bool = False,
+              callback: Callback = None) -> GPQAgent:  # fmt: skip
         """Interact with the env for ``total_timesteps`` steps, learning online. Returns self.
 
         ``callback`` is called with each finished episode's record; returning
@@ -308,8 +291,7 @@ class GPQAgent:
         episode cut short by ``total_timesteps`` is not recorded. A step the env answers
         wrongly (:func:`~geoq.agents._env.env_step`) raises a ``ValueError`` and is not
         taken: the agent stays as after the step before (as before the call if none).
-        ``learn(0)`` takes no step and changes nothing (no draw, no phase). Each step holds
-        the agent's lock (module docstring, Threads): other threads may predict meanwhile.
+        ``learn(0)`` changes nothing. Other threads may predict meanwhile (module docstring).
         """
         check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
@@ -318,19 +300,17 @@ class GPQAgent:
         if total_timesteps == 0:  # no episode to seed, no step to train on
             return self
         bar = _env.make_progress_bar(total_timesteps) if progress_bar else None
-        with self._lock:
-            start, n_before = self.rng.bit_generator.state, self.num_timesteps
-            # Later episodes continue the env's own generator, seeded at the first reset.
-            seed: int | None = int(self.rng.integers(2**32))
+        start, n_before = self.rng.bit_generator.state, self.num_timesteps
+        # Later episodes continue the env's own generator, seeded at the first reset.
+        seed: int | None = int(self.rng.integers(2**32))
         remaining, stop = int(total_timesteps), False
         try:
             while remaining > 0 and not stop:
                 steps, stop = self._collect_episode(env, seed, remaining, bar, callback)
                 remaining, seed = remaining - steps, None
         except BaseException:
-            with self._lock:
-                if self.num_timesteps == n_before:  # no step taken: the generator as it was
-                    self.rng.bit_generator.state = start
+            if self.num_timesteps == n_before:  # no step taken: the generator as it was
+                self.rng.bit_generator.state = start
             raise
         finally:
             if bar is not None:
@@ -342,20 +322,13 @@ class GPQAgent:
             self.explorer.plan()
         return self
 
-    def _collect_episode(
-        self,
-        env: gymnasium.Env,
-        seed: int | None,
-        max_steps: int,
-        bar: Any,
-        callback: Callback,
-    ) -> tuple[int, bool]:
+    def _collect_episode(self, env: gymnasium.Env, seed: int | None, max_steps: int, bar: Any,
+                         callback: Callback) -> tuple[int, bool]:  # fmt: skip
         """One episode, or its first ``max_steps`` steps, learning online and training when
         a phase is due; returns the steps taken and whether the callback asked to stop.
         Each step (with its phase and, at the end, the callback) holds the agent's lock."""
-        with self._lock:
-            s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
-            q = self._q_or_none(s)
+        s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
+        q = self._q_or_none(s)  # (q_candidates holds the lock)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
             with self._lock:
@@ -364,7 +337,8 @@ class GPQAgent:
                 if bar is not None:
                     bar.update(1)
                 over = step.terminated or step.truncated
-                if (self._phase_due() or over) and not self.state.scaling_pending:
+                due = self.state.phase_due(self.config, len(self.buffer))
+                if (due or over) and not self.state.scaling_pending:
                     self.train()
                     q = None if over else self.q_candidates(step.next_state)
                 if over:
@@ -408,14 +382,6 @@ class GPQAgent:
             q = self.q_candidates(step.next_state)
         st.num_timesteps += 1
         return step, q
-
-    def _phase_due(self) -> bool:
-        """Whether a fitted-Q phase is due mid-episode (``train_every``, ``train_fraction``)."""
-        c = self.config
-        if self.num_timesteps % c.train_every:
-            return False
-        new = self.num_timesteps - self.state.last_train_timestep
-        return new >= c.train_fraction * min(len(self.buffer), c.window)
 
     def _finish_warmup(self) -> None:
         """Fix the input scaling from the warm-up's states and start learning on them."""
@@ -462,8 +428,7 @@ class GPQAgent:
             if st.data_scaled and self.env is not None:  # the states' spread outgrew the scale?
                 if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
                     self._rescale_from_data()
-            c = self.config
-            if c.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
+            if self.config.hyperparameters == "evidence" and len(self.buffer) >= st.evidence_due:
                 refit_lengthscales(self)
             try:
                 return self._train()
@@ -510,29 +475,22 @@ class GPQAgent:
 
     @classmethod
     def load(cls, path: str | PathLike[str], env: gymnasium.Env | str | None = None) -> GPQAgent:
-        """Load an agent written by :meth:`save`.
-
-        ``env``: the env to keep learning in (its spaces must match the saved
-        ones); by default the saved env id is made again if it is registered,
-        else the agent can only :meth:`predict`.
-        """
+        """Load an agent written by :meth:`save`. ``env``: the env to keep learning in (its
+        spaces must match the saved ones); by default the saved env id is made again if it
+        is registered, else the agent can only :meth:`predict`."""
         return load_agent(cls, path, env)
 
     def set_env(self, env: gymnasium.Env | str) -> None:
         """Attach an env whose spaces match the agent's."""
-        matching = _env.matching_env(env, self.obs_dim, self.action_low, self.action_high)
         with self._lock:
-            self.env = matching
+            self.env = _env.matching_env(env, self.obs_dim, self.action_low, self.action_high)
 
     def __getstate__(self) -> dict[str, Any]:
         """Copies (``copy.deepcopy``, pickling) leave out the lock; each gets its own."""
-        state = dict(self.__dict__)
-        del state["_lock"]
-        return state
+        return {k: v for k, v in self.__dict__.items() if k != "_lock"}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._lock = threading.RLock()
+        self.__dict__.update(state, _lock=threading.RLock())
 
     def __repr__(self) -> str:
         return (

@@ -9,12 +9,15 @@ an older file takes the value that file's code behaved as.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from geoq._validation import MAX_MAGNITUDE
 from geoq.agents.buffer import EpisodeRecord
+
+if TYPE_CHECKING:
+    from geoq.agents.config import GPQConfig
 
 __all__ = [
     "MAX_VALUE",
@@ -100,6 +103,14 @@ class LearningState:
     """Length-scales fitted by evidence (``hyperparameters="evidence"``), else None."""
     evidence_due: int = 0
     """The next evidence fit runs once this many transitions are stored."""
+
+    def phase_due(self, config: GPQConfig, n_stored: int) -> bool:
+        """Whether a fitted-Q phase is due mid-episode with ``n_stored`` transitions stored
+        (``config.train_every``, ``config.train_fraction``, ``config.window``)."""
+        if self.num_timesteps % config.train_every:
+            return False
+        new = self.num_timesteps - self.last_train_timestep
+        return new >= config.train_fraction * min(n_stored, config.window)
 
     def _widened(self, r: float, terminated: bool) -> tuple[float, float]:
         lo, hi = self.terminal_reward_range if terminated else self.reward_range

@@ -117,14 +117,28 @@ class CellTree:
 
     def _index_roots(self) -> None:
         """The sorted keys that :meth:`roots_of` searches (after roots change)."""
-        keys = _row_keys(self.root_grid)
+        extents = (self.grid_high - self.grid_low + 1).tolist()
+        #: C-order strides of the grid when its cells fit an int64 index (else None: the
+        #: rows themselves are the keys).
+        self._strides = None
+        if math.prod(extents) < 2**62:
+            self._strides = np.cumprod([1, *extents[:0:-1]])[::-1].astype(np.int64)
+        keys = self._keys(self.root_grid)
         self._order = np.argsort(keys, kind="stable")
         self._sorted = keys[self._order]
+
+    def _keys(self, coords: IntArray) -> np.ndarray:
+        """One sortable key per row of ``coords [n, d]``, ordered as the rows are
+        lexicographically: the flat grid index where it fits an int64, else the row."""
+        if self._strides is None:
+            return _row_keys(coords)
+        return np.asarray((np.asarray(coords, dtype=np.int64) - self.grid_low) @ self._strides,
+                          dtype=np.int64).reshape(-1)  # fmt: skip
 
     def roots_of(self, coords: IntArray) -> IntArray:
         """The row of :attr:`root_grid` ``[n]`` of each grid cell ``coords [n, d]``; -1 where
         the grid cell holds no leaf."""
-        keys = _row_keys(coords)
+        keys = self._keys(coords)
         if self.n_roots == 0:
             return np.full(keys.size, -1, dtype=np.int64)
         at = np.minimum(np.searchsorted(self._sorted, keys), self.n_roots - 1)

@@ -279,10 +279,9 @@ class StateMap:
         count ``[L, K]`` of every (leaf, candidate) (a macro move from the leaf's centre)."""
         cells, K, d = self.cells, self.n_candidates, self.cells.dim
         moved = ~blocked
-        coords = cells.grid_coords(self.S[moved])
-        starts, cell = np.unique(coords, axis=0, return_inverse=True)
-        idx = cell.reshape(-1) * K + self.k[moved]
-        C = len(starts)
+        cell = cells.roots_of(cells.grid_coords(self.S[moved]))  # every state's has a root
+        starts, C = cells.root_grid, cells.n_roots
+        idx = cell * K + self.k[moved]
         weights = [*(self.S2[moved] - self.S[moved]).T, self.r[moved], self.done[moved]]
         per_cell = [np.bincount(idx, minlength=C * K).reshape(C, K)]
         per_cell += [np.bincount(idx, weights=w, minlength=C * K).reshape(C, K) for w in weights]

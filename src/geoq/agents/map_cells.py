@@ -22,6 +22,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from geoq._typing import FloatArray, IntArray
 
@@ -149,8 +150,6 @@ class CellTree:
         ``coords [n, d]`` at most one grid cell away along every dimension (the ``3^d``
         grid cells around the root's, itself included); memory and time follow the rows
         and roots, not ``3^d``."""
-        from scipy.spatial import cKDTree
-
         if self.n_roots == 0 or len(coords) == 0:
             empty = np.zeros(0, dtype=np.int64)
             return empty, empty

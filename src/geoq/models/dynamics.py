@@ -1,0 +1,283 @@
+"""A GP model of one step of a task: next-state change, reward and termination.
+
+As in PILCO (Deisenroth & Rasmussen 2011), each output of a step is its own GP on
+the input ``x = [s, a]`` [D = d_s + d_a]: the ``d_s`` state changes ``s' - s``, the
+reward ``r`` and the termination flag (0 or 1, read as a probability). Inputs are
+standardised by the data's mean and standard deviation, each output by its own.
+
+Each output's squared-exponential kernel (ARD: one length-scale per input) takes its
+length-scales, amplitude and noise from the exact GP's evidence
+(:func:`geoq.gp.evidence.fit_squared_exponential`) on at most ``fit_points`` of the
+transitions; its posterior is a :class:`~geoq.gp.SparseOnlineGP` of at most
+``max_bv`` basis vectors into which every transition is streamed (a refit at
+:meth:`GPDynamicsModel.fit`, one step at a time by :meth:`GPDynamicsModel.observe`).
+An output that has been constant in the data (a task that never terminated) is that
+constant, with no uncertainty, until the next fit.
+
+Prediction is batched over particles and outputs. Each GP's posterior is
+``mean = k_x^T alpha`` and ``var = k(x, x) - |W^T k_x|^2`` with ``W W^T = -C`` (the
+GP's ``alpha`` and ``C``; ``W = R^{-1} U sqrt(lambda)`` from the eigenpairs of its
+whitened ``I - S``: a sum of squares, which keeps the variance's rounding at the
+prior's). Stacked into ``[J, m]`` and ``[J, m, m]`` arrays, a call about ``P``
+particles is a few batched matrix products of ``[J, P, m]``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from geoq._io import ArchiveError
+from geoq._typing import FloatArray
+from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
+from geoq.gp import NumericalWarning, SparseOnlineGP
+from geoq.gp.evidence import fit_squared_exponential
+from geoq.kernels.stationary import SquaredExponential
+
+__all__ = ["GPDynamicsModel", "ModelSettings"]
+
+#: A standard deviation below this times ``1 + |mean|`` makes an input or output constant.
+_CONSTANT = 1e-12
+#: Least noise variance of a standardised output (a deterministic simulator's outputs
+#: would otherwise ask the Cholesky factors for an exactly interpolating GP).
+_NOISE_FLOOR = 1e-6
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """How each output's GP is made."""
+
+    max_bv: int = 200
+    """Basis-vector budget of each output's sparse online GP."""
+    fit_points: int = 300
+    """Transitions the evidence is computed on (``O(fit_points^3)`` per evaluation)."""
+    restarts: int = 1
+    """Further starts of each evidence fit."""
+    tol: float = 1e-6
+    """Relative novelty a transition needs to become a basis vector (0 with ``max_bv``
+    at least the transitions' count: every one is kept, the exact GP)."""
+
+    def __post_init__(self) -> None:
+        check_int(self.max_bv, "max_bv", minimum=1, maximum=5000)
+        check_int(self.fit_points, "fit_points", minimum=2, maximum=5000)
+        check_int(self.restarts, "restarts", minimum=0, maximum=100)
+        check_real(self.tol, "tol", low=0.0, high=1.0)
+
+
+@dataclass(frozen=True)
+class _Stack:
+    """Every non-constant output's posterior weights, padded to one ``m``: ``scaled_basis``
+    [J, m, D] (basis / length-scales), ``basis_sq`` [J, m], ``alpha`` [J, m], ``W`` [J, m, m],
+    ``inv_ls`` [J, D], ``variance`` [J]; padded rows have zero weights."""
+
+    scaled_basis: FloatArray
+    basis_sq: FloatArray
+    alpha: FloatArray
+    W: FloatArray
+    inv_ls: FloatArray
+    variance: FloatArray
+
+
+def _kernel(gp: SparseOnlineGP) -> SquaredExponential:
+    assert isinstance(gp.kernel, SquaredExponential)  # every output's GP is made so
+    return gp.kernel
+
+
+def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
+    """``W`` [m, m] with ``W W^T = -C = R^{-1} (I - S) R^{-T}`` (module docstring)."""
+    m = gp.n_bv
+    R = gp.cholesky_factor
+    _, S = gp.whitened_posterior
+    lam, U = np.linalg.eigh(np.eye(m) - 0.5 * (S + S.T))
+    Rinv = scipy.linalg.solve_triangular(R, np.eye(m), lower=False, check_finite=False)
+    return Rinv @ (U * np.sqrt(np.maximum(lam, 0.0)))
+
+
+class GPDynamicsModel:
+    """One GP per output of a step (module docstring).
+
+    Attributes (after :meth:`fit`): ``x_mean``, ``x_scale`` [D]; ``y_mean``, ``y_scale``
+    [J] with ``J = d_s + 2`` (state changes, reward, termination); ``gps`` [J] (None for
+    a constant output); ``prior_std`` [J] (an output's std far from every transition, 0
+    for a constant); ``n_seen`` (transitions taken in).
+    """
+
+    def __init__(self, obs_dim: int, action_dim: int, settings: ModelSettings | None = None):
+        self.obs_dim = check_int(obs_dim, "obs_dim", minimum=1)
+        self.action_dim = check_int(action_dim, "action_dim", minimum=1)
+        self.settings = settings or ModelSettings()
+        self.n_outputs = self.obs_dim + 2
+        self.gps: list[SparseOnlineGP | None] = []
+        self.n_seen = 0
+        self._stack: _Stack | None = None
+
+    @property
+    def fitted(self) -> bool:
+        """Whether :meth:`fit` has run (before it, :meth:`predict` raises)."""
+        return bool(self.gps)
+
+    # ------------------------------------------------------------------ data
+    def _inputs(self, S: FloatArray, A: FloatArray) -> FloatArray:
+        return (np.hstack([S, A]) - self.x_mean) / self.x_scale
+
+    def _outputs(self, S: Any, A: Any, R: Any, S2: Any, T: Any) -> tuple[FloatArray, FloatArray]:
+        """Checked inputs ``[N, D]`` (raw) and outputs ``[N, J]`` of ``N`` transitions."""
+        S = as_float_matrix(S, "states", self.obs_dim)
+        n = S.shape[0]
+        A = as_float_matrix(A, "actions", self.action_dim)
+        S2 = as_float_matrix(S2, "next_states", self.obs_dim)
+        R = as_float_vector(R, "rewards", n)
+        T = as_float_vector(np.asarray(T, dtype=np.float64), "terminated", n)
+        if A.shape[0] != n or S2.shape[0] != n:
+            raise ValueError(f"states, actions and next_states must have {n} rows each")
+        return np.hstack([S, A]), np.column_stack([S2 - S, R, T])
+
+    def fit(
+        self, states: Any, actions: Any, rewards: Any, next_states: Any, terminated: Any,
+        rng: np.random.Generator,
+    ) -> GPDynamicsModel:  # fmt: skip
+        """Fit every output to ``N`` transitions (``[N, d_s]``, ``[N, d_a]``, ``[N]``, ``[N, d_s]``,
+        ``[N]``): standardisation, evidence, then a sparse GP streamed every transition."""
+        X, Y = self._outputs(states, actions, rewards, next_states, terminated)
+        if X.shape[0] < 2:
+            raise ValueError(f"a model needs at least 2 transitions, got {X.shape[0]}")
+        self.x_mean = X.mean(axis=0)
+        spread = X.std(axis=0)
+        self.x_scale = np.where(spread > _CONSTANT * (1 + np.abs(self.x_mean)), spread, 1.0)
+        Xs = (X - self.x_mean) / self.x_scale
+        self.y_mean = Y.mean(axis=0)
+        self.y_scale = Y.std(axis=0)
+        self.gps = [self._fit_output(Xs, Y[:, j], j, rng) for j in range(self.n_outputs)]
+        self.prior_std = np.array([
+            0.0 if gp is None else self.y_scale[j] * np.sqrt(_kernel(gp).variance)
+            for j, gp in enumerate(self.gps)
+        ])  # fmt: skip
+        self.n_seen, self._stack = X.shape[0], None
+        return self
+
+    def _fit_output(
+        self, Xs: FloatArray, y: FloatArray, j: int, rng: np.random.Generator
+    ) -> SparseOnlineGP | None:
+        if self.y_scale[j] <= _CONSTANT * (1 + abs(self.y_mean[j])):
+            self.y_scale[j] = 1.0
+            return None
+        z = (y - self.y_mean[j]) / self.y_scale[j]
+        s = self.settings
+        with warnings.catch_warnings():  # a length-scale at its bound: an input it ignores
+            warnings.simplefilter("ignore", NumericalWarning)
+            fit = fit_squared_exponential(
+                Xs, z, max_points=s.fit_points, n_restarts=s.restarts, rng=rng
+            )
+        variance = float(fit.kernel.variance)
+        kernel = SquaredExponential(fit.kernel.lengthscale, variance=variance)
+        noise = max(float(fit.noise), _NOISE_FLOOR * variance)
+        return SparseOnlineGP(kernel, noise=noise, max_bv=s.max_bv, tol=s.tol).fit(Xs, z)
+
+    def observe(
+        self, state: Any, action: Any, reward: float, next_state: Any, terminated: bool
+    ) -> None:
+        """Stream one transition into every non-constant output's GP (the standardisation
+        and kernels stay those of the last :meth:`fit`)."""
+        if not self.fitted:
+            raise RuntimeError("observe needs a fitted model: call fit first")
+        X, Y = self._outputs([state], [action], [reward], [next_state], [terminated])
+        x = (X[0] - self.x_mean) / self.x_scale
+        for j, gp in enumerate(self.gps):
+            if gp is not None:
+                gp.update(x, (Y[0, j] - self.y_mean[j]) / self.y_scale[j])
+        self.n_seen += 1
+        self._stack = None
+
+    # ------------------------------------------------------------------ prediction
+    def _stacked(self) -> _Stack:
+        if self._stack is None:
+            live = [gp for gp in self.gps if gp is not None]
+            J, D = len(live), self.obs_dim + self.action_dim
+            m = max([gp.n_bv for gp in live], default=0)
+            basis, alpha, W = np.zeros((J, m, D)), np.zeros((J, m)), np.zeros((J, m, m))
+            inv_ls, variance = np.ones((J, D)), np.ones(J)
+            for i, gp in enumerate(live):
+                k = gp.n_bv
+                inv_ls[i] = 1.0 / np.broadcast_to(_kernel(gp).lengthscale, (D,))
+                basis[i, :k], alpha[i, :k] = gp.basis_vectors * inv_ls[i], gp.alpha
+                W[i, :k, :k] = _variance_factor(gp)
+                variance[i] = _kernel(gp).variance
+            self._stack = _Stack(basis, np.einsum("jmd,jmd->jm", basis, basis), alpha, W,
+                                 inv_ls, variance)  # fmt: skip
+        return self._stack
+
+    def predict(self, states: FloatArray, actions: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Predictive mean and std (of the latent outputs, noise excluded) ``[P, J]`` of
+        ``P`` particles ``states`` [P, d_s], ``actions`` [P, d_a], in the data's units:
+        columns ``0..d_s-1`` the state change, ``d_s`` the reward, ``d_s + 1`` the
+        termination. Inputs are not validated (a planner's inner loop)."""
+        if not self.fitted:
+            raise RuntimeError("predict needs a fitted model: call fit first")
+        st, P = self._stacked(), states.shape[0]
+        Z = self._inputs(states, actions)[None] * st.inv_ls[:, None, :]  # [J, P, D]
+        d2 = np.einsum("jpd,jpd->jp", Z, Z)[:, :, None] + st.basis_sq[:, None, :]
+        d2 -= 2.0 * Z @ st.scaled_basis.transpose(0, 2, 1)
+        K = st.variance[:, None, None] * np.exp(-0.5 * np.maximum(d2, 0.0))  # [J, P, m]
+        z_mean = np.einsum("jpm,jm->jp", K, st.alpha)
+        KW = K @ st.W
+        z_var = st.variance[:, None] - np.einsum("jpm,jpm->jp", KW, KW)
+        mean = np.tile(self.y_mean, (P, 1))
+        std = np.zeros((P, self.n_outputs))
+        live = [j for j, gp in enumerate(self.gps) if gp is not None]
+        mean[:, live] += z_mean.T * self.y_scale[live]
+        std[:, live] = np.sqrt(np.maximum(z_var.T, 0.0)) * self.y_scale[live]
+        return mean, std
+
+    # ------------------------------------------------------------------ persistence
+    def to_arrays(self) -> dict[str, Any]:
+        """The model as plain arrays (for an agent's archive); :meth:`from_arrays` reads it."""
+        s = self.settings
+        out: dict[str, Any] = {
+            "dims": np.array([self.obs_dim, self.action_dim, self.n_seen]),
+            "settings": np.array([s.max_bv, s.fit_points, s.restarts, s.tol]),
+        }
+        if not self.fitted:
+            return out
+        out |= {"x_mean": self.x_mean, "x_scale": self.x_scale, "y_mean": self.y_mean,
+                "y_scale": self.y_scale, "prior_std": self.prior_std,
+                "live": np.array([gp is not None for gp in self.gps])}  # fmt: skip
+        for j, gp in enumerate(self.gps):
+            if gp is not None:
+                out |= {f"gp{j}/{k}": v for k, v in gp.to_arrays().items()}
+        return out
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, Any], source: str = "<arrays>") -> GPDynamicsModel:
+        """Inverse of :meth:`to_arrays`; an :class:`~geoq._io.ArchiveError` names what is wrong."""
+        try:
+            obs_dim, action_dim, n_seen = (int(v) for v in a["dims"])
+            max_bv, fit_points, restarts, tol = (float(v) for v in a["settings"])
+            settings = ModelSettings(int(max_bv), int(fit_points), int(restarts), tol)
+            model = cls(obs_dim, action_dim, settings)
+            model.n_seen = n_seen
+            if "live" not in a:
+                return model
+            J, D = model.n_outputs, obs_dim + action_dim
+            for name, n in (("x_mean", D), ("x_scale", D), ("y_mean", J), ("y_scale", J),
+                            ("prior_std", J), ("live", J)):  # fmt: skip
+                model.__dict__[name] = as_float_vector(a[name], name, n)
+            if not np.all(np.isfinite(model.x_scale)) or np.any(model.x_scale <= 0):
+                raise ValueError("x_scale must be finite and positive")
+            model.gps = [
+                SparseOnlineGP.from_arrays(
+                    {k.split("/", 1)[1]: v for k, v in a.items() if k.startswith(f"gp{j}/")},
+                    source=source,
+                ) if live else None
+                for j, live in enumerate(model.__dict__.pop("live") > 0)
+            ]  # fmt: skip
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ArchiveError(f"{source}: the dynamics model is damaged: {exc}") from exc
+        return model
+
+    def __repr__(self) -> str:
+        return (f"GPDynamicsModel(obs_dim={self.obs_dim}, action_dim={self.action_dim}, "
+                f"{asdict(self.settings)}, n_seen={self.n_seen})")  # fmt: skip

@@ -1,0 +1,147 @@
+"""The dynamics model against the exact GP, and its batched prediction against each GP's own."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoq._io import ArchiveError
+from geoq.gp import ExactGP
+from geoq.kernels.stationary import SquaredExponential
+from geoq.models import GPDynamicsModel, ModelSettings
+
+
+def _transitions(n: int, rng: np.random.Generator, d_s: int = 2, d_a: int = 1):
+    """Non-linear steps with a reward and terminations: ``(S, A, R, S2, T)``."""
+    S = rng.uniform(-1.0, 1.0, size=(n, d_s))
+    A = rng.uniform(-1.0, 1.0, size=(n, d_a))
+    change = np.column_stack(
+        [np.sin(4.0 * S[:, 0]) * A[:, 0], np.cos(3.0 * S[:, -1]) + S[:, 0] * A[:, -1]]
+        + [0.1 * S[:, j] for j in range(2, d_s)]
+    )
+    R = -np.sum(S**2, axis=1) - 0.1 * np.sum(A**2, axis=1)
+    T = (S[:, 0] > 0.8).astype(float)
+    return S, A, R, S + 0.1 * change, T
+
+
+def _outputs(S, A, R, S2, T):
+    return np.column_stack([S2 - S, R, T])
+
+
+def test_every_output_is_the_exact_gp_when_every_transition_is_a_basis_vector() -> None:
+    rng = np.random.default_rng(0)
+    data = _transitions(25, rng)
+    model = GPDynamicsModel(2, 1, ModelSettings(max_bv=100, tol=0.0)).fit(*data, rng)
+    Sq, Aq = rng.uniform(-1.2, 1.2, size=(9, 2)), rng.uniform(-1.0, 1.0, size=(9, 1))
+    mean, std = model.predict(Sq, Aq)
+    Y = _outputs(*data)
+    X = (np.hstack(data[:2]) - model.x_mean) / model.x_scale
+    Xq = (np.hstack([Sq, Aq]) - model.x_mean) / model.x_scale
+    exact_outputs = 0
+    for j, gp in enumerate(model.gps):
+        assert gp is not None  # every output varies in these data
+        if gp.n_bv < len(Y):  # a near-duplicate input (novelty floor): not the exact GP
+            continue
+        exact_outputs += 1
+        kernel = SquaredExponential(gp.kernel.lengthscale, variance=gp.kernel.variance)
+        z = (Y[:, j] - model.y_mean[j]) / model.y_scale[j]
+        mu, sd = ExactGP(kernel, gp.noise).fit(X, z).predict(Xq, return_std=True)
+        np.testing.assert_allclose(mean[:, j], model.y_mean[j] + model.y_scale[j] * mu,
+                                   rtol=1e-7, atol=1e-9)  # fmt: skip
+        # The variance is the prior's less a near-equal term: accurate to the prior's 1e-9.
+        np.testing.assert_allclose(std[:, j] ** 2, (model.y_scale[j] * sd) ** 2,
+                                   rtol=0, atol=1e-9 * model.prior_std[j] ** 2)  # fmt: skip
+    assert exact_outputs >= 3
+
+
+def test_batched_prediction_is_each_gps_own_prediction() -> None:
+    rng = np.random.default_rng(1)
+    data = _transitions(400, rng, d_s=3, d_a=2)
+    model = GPDynamicsModel(3, 2, ModelSettings(max_bv=40)).fit(*data, rng)
+    for i in range(5):  # online steps after the fit
+        model.observe(*(np.asarray(x)[i] for x in _transitions(5, rng, 3, 2)))
+    Sq, Aq = rng.uniform(-2, 2, size=(33, 3)), rng.uniform(-1, 1, size=(33, 2))
+    mean, std = model.predict(Sq, Aq)
+    Xq = (np.hstack([Sq, Aq]) - model.x_mean) / model.x_scale
+    for j, gp in enumerate(model.gps):
+        assert gp is not None
+        mu, sd = gp.predict(Xq, return_std=True)
+        np.testing.assert_allclose(mean[:, j], model.y_mean[j] + model.y_scale[j] * mu,
+                                   rtol=1e-8, atol=1e-10)  # fmt: skip
+        np.testing.assert_allclose(std[:, j] ** 2, (model.y_scale[j] * sd) ** 2,
+                                   rtol=0, atol=1e-9 * model.prior_std[j] ** 2)  # fmt: skip
+    assert np.all(std >= 0)
+
+
+def test_far_from_the_data_the_std_is_the_prior_std() -> None:
+    rng = np.random.default_rng(2)
+    model = GPDynamicsModel(2, 1).fit(*_transitions(200, rng), rng)
+    _, std = model.predict(np.full((1, 2), 1e3), np.zeros((1, 1)))
+    np.testing.assert_allclose(std[0], model.prior_std, rtol=1e-9)
+
+
+def test_a_constant_output_is_its_constant_without_uncertainty() -> None:
+    rng = np.random.default_rng(3)
+    S, A, R, S2, _ = _transitions(100, rng)
+    model = GPDynamicsModel(2, 1).fit(S, A, R, S2, np.zeros(100), rng)
+    assert model.gps[3] is None and model.prior_std[3] == 0.0
+    mean, std = model.predict(S[:4], A[:4])
+    assert np.all(mean[:, 3] == 0.0) and np.all(std[:, 3] == 0.0)
+
+
+def test_the_same_seed_gives_the_same_model() -> None:
+    data = _transitions(300, np.random.default_rng(4))
+    a = GPDynamicsModel(2, 1).fit(*data, np.random.default_rng(5))
+    b = GPDynamicsModel(2, 1).fit(*data, np.random.default_rng(5))
+    q = (data[0][:20], data[1][:20])
+    assert all(np.array_equal(x, y) for x, y in zip(a.predict(*q), b.predict(*q), strict=True))
+
+
+def test_arrays_round_trip_and_the_model_continues_identically() -> None:
+    rng = np.random.default_rng(6)
+    data = _transitions(200, rng)
+    model = GPDynamicsModel(2, 1, ModelSettings(max_bv=50)).fit(*data, rng)
+    copy = GPDynamicsModel.from_arrays(model.to_arrays())
+    more = _transitions(10, rng)
+    for m in (model, copy):
+        for i in range(10):
+            m.observe(*(np.asarray(x)[i] for x in more))
+    q = (more[0], more[1])
+    for x, y in zip(model.predict(*q), copy.predict(*q), strict=True):
+        assert np.array_equal(x, y)
+    assert GPDynamicsModel.from_arrays(GPDynamicsModel(2, 1).to_arrays()).fitted is False
+
+
+def test_a_damaged_model_is_an_archive_error() -> None:
+    rng = np.random.default_rng(7)
+    arrays = GPDynamicsModel(2, 1).fit(*_transitions(50, rng), rng).to_arrays()
+    for key, bad in (("x_scale", np.array([1.0, -1.0, 1.0])), ("y_mean", np.ones(2)),
+                     ("dims", np.array([2]))):  # fmt: skip
+        with pytest.raises(ArchiveError, match="dynamics model"):
+            GPDynamicsModel.from_arrays({**arrays, key: bad})
+
+
+def _zeros(n: int = 3, d_a: int = 1, n_next: int = 3, reward: object = None) -> tuple:
+    rewards = np.zeros(n) if reward is None else reward
+    return np.zeros((n, 2)), np.zeros((n, d_a)), rewards, np.zeros((n_next, 2)), np.zeros(n)
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (_zeros(n_next=2), "rows"),
+        (_zeros(d_a=2), "actions"),
+        (_zeros(reward=[0.0, np.nan, 0.0]), "rewards"),
+        (_zeros(n=1, n_next=1), "at least 2"),
+    ],
+)
+def test_bad_transitions_are_refused(args, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        GPDynamicsModel(2, 1).fit(*args, np.random.default_rng(0))
+
+
+def test_predict_and_observe_need_a_fit() -> None:
+    with pytest.raises(RuntimeError, match="fit"):
+        GPDynamicsModel(2, 1).predict(np.zeros((1, 2)), np.zeros((1, 1)))
+    with pytest.raises(RuntimeError, match="fit"):
+        GPDynamicsModel(2, 1).observe(np.zeros(2), np.zeros(1), 0.0, np.zeros(2), False)

@@ -1,0 +1,159 @@
+"""The planner against LQR (scipy's discrete algebraic Riccati equation) and its contracts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from geoq.models import CEMPlanner, GPDynamicsModel, ModelSettings, PlannerSettings, model_returns
+
+DT = 0.1
+A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
+B_SYS = np.array([[0.0], [DT]])
+Q_COST, R_COST = np.diag([1.0, 0.1]), np.array([[0.01]])
+
+
+def _lqr() -> tuple[np.ndarray, np.ndarray]:
+    """``P`` (cost-to-go ``s^T P s``) and the gain ``K`` (``a = -K s``), undiscounted."""
+    P = scipy.linalg.solve_discrete_are(A_SYS, B_SYS, Q_COST, R_COST)
+    K = np.linalg.solve(R_COST + B_SYS.T @ P @ B_SYS, B_SYS.T @ P @ A_SYS)
+    return P, K
+
+
+def _reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
+    return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
+
+
+def _exact_q(P: np.ndarray):
+    """``Q(s, a) = r(s, a) - s'^T P s'``: the optimal value of acting ``a`` at ``s``."""
+
+    def q(S: np.ndarray, A: np.ndarray) -> np.ndarray:
+        S2 = S @ A_SYS.T + A @ B_SYS.T
+        return _reward(S, A) - np.einsum("pi,ij,pj->p", S2, P, S2)
+
+    return q
+
+
+def _exact_returns(s0: np.ndarray, actions: np.ndarray, q) -> np.ndarray:
+    S, total = np.repeat(s0[None], len(actions), axis=0), np.zeros(len(actions))
+    for t in range(actions.shape[1] - 1):
+        total += _reward(S, actions[:, t])
+        S = S @ A_SYS.T + actions[:, t] @ B_SYS.T
+    return total + q(S, actions[:, -1])
+
+
+@pytest.mark.parametrize("horizon", [0, 3])
+def test_the_first_action_approaches_the_lqr_action_on_the_exact_system(horizon: int) -> None:
+    P, K = _lqr()
+    low, high = np.array([-20.0]), np.array([20.0])
+    settings = PlannerSettings(horizon=horizon, samples=300, iterations=12, elites=30,
+                               min_std=1e-4)  # fmt: skip
+    rng = np.random.default_rng(0)
+    for s0 in (np.array([1.0, 0.0]), np.array([-0.5, 1.0]), np.array([0.3, -2.0])):
+        planner = CEMPlanner(low, high, settings)
+        a = planner.plan(lambda U, s0=s0: _exact_returns(s0, U, _exact_q(P)), rng)
+        lqr = -(K @ s0)
+        assert abs(a[0] - lqr[0]) < 0.02 * (1.0 + abs(lqr[0])), (a, lqr)
+
+
+def test_through_a_learned_model_the_first_action_approaches_the_lqr_action() -> None:
+    P, K = _lqr()
+    rng = np.random.default_rng(1)
+    S = rng.uniform(-2.0, 2.0, size=(400, 2))
+    A = rng.uniform(-10.0, 10.0, size=(400, 1))
+    S2 = S @ A_SYS.T + A @ B_SYS.T
+    model = GPDynamicsModel(2, 1, ModelSettings(max_bv=150)).fit(
+        S, A, _reward(S, A), S2, np.zeros(400), rng
+    )
+    settings = PlannerSettings(horizon=3, samples=300, iterations=12, elites=30, min_std=1e-4)
+    for s0 in (np.array([1.0, 0.0]), np.array([-0.5, 1.0])):
+        planner = CEMPlanner(np.array([-10.0]), np.array([10.0]), settings)
+
+        def score(U: np.ndarray, s0: np.ndarray = s0) -> np.ndarray:
+            return model_returns(model, s0, U, gamma=1.0, value=_exact_q(P), floor=-1e3,
+                                 rng=None)  # fmt: skip
+
+        a, lqr = planner.plan(score, rng), -(K @ s0)
+        assert abs(a[0] - lqr[0]) < 0.05 * (1.0 + abs(lqr[0])), (a, lqr)
+
+
+class _LinearModel:
+    """The double integrator as a model: exact means, no uncertainty (a known model)."""
+
+    obs_dim = 2
+    prior_std = np.ones(4)
+
+    def predict(self, S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        change = S @ A_SYS.T + A @ B_SYS.T - S
+        mean = np.column_stack([change, _reward(S, A), np.zeros(len(S))])
+        return mean, np.zeros_like(mean)
+
+
+def test_model_returns_through_a_known_model_are_the_exact_returns() -> None:
+    P, _ = _lqr()
+    rng = np.random.default_rng(2)
+    U = rng.uniform(-3.0, 3.0, size=(20, 5, 1))
+    s0 = np.array([0.5, -0.5])
+    got = model_returns(_LinearModel(), s0, U, gamma=1.0, value=_exact_q(P), floor=-9.0,
+                        rng=rng)  # type: ignore[arg-type]  # fmt: skip
+    np.testing.assert_allclose(got, _exact_returns(s0, U, _exact_q(P)), rtol=1e-12)
+    discounted = model_returns(_LinearModel(), s0, U[:, :1], gamma=0.5, value=_exact_q(P),
+                               floor=-9.0, rng=None)  # type: ignore[arg-type]  # fmt: skip
+    np.testing.assert_allclose(discounted, _exact_q(P)(np.repeat(s0[None], 20, 0), U[:, 0]))
+
+
+def test_a_predicted_termination_ends_the_return_and_far_from_the_data_it_halts() -> None:
+    rng = np.random.default_rng(3)
+    S = rng.uniform(-1.0, 1.0, size=(300, 1))
+    A = rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2 = S + 0.1 * A
+    T = (S2[:, 0] > 0.5).astype(float)  # stepping past 0.5 ends the episode
+    model = GPDynamicsModel(1, 1).fit(S, A, np.ones(300), S2, T, rng)
+    push = np.ones((2, 6, 1))
+    push[1] = -1.0  # toward 0.5 and away from it
+    got = model_returns(model, np.array([0.35]), push, gamma=1.0, value=None, floor=0.0, rng=None)
+    assert got[0] < 3.0 < got[1]  # ends after about 2 steps; -1 keeps to the data 5 steps
+
+    # Driven far past the data the particle halts with the floor.
+    def value(s: np.ndarray, a: np.ndarray) -> np.ndarray:
+        return np.full(len(s), 100.0)
+
+    away = np.full((1, 40, 1), -1.0)
+    far = model_returns(model, np.array([0.0]), away, gamma=1.0, value=value, floor=-50.0,
+                        rng=None)  # fmt: skip
+    assert far[0] < 0.0
+
+
+def test_the_planner_keeps_its_plan_as_the_next_start_and_the_same_seed_plans_alike() -> None:
+    planner = CEMPlanner(np.array([-1.0, 0.0]), np.array([1.0, 2.0]), PlannerSettings(horizon=2))
+    target = np.array([0.5, 1.5])
+
+    def score(U: np.ndarray) -> np.ndarray:
+        return -np.sum((U - target) ** 2, axis=(1, 2))
+
+    a = planner.plan(score, np.random.default_rng(4))
+    assert planner.mean is not None and planner.mean.shape == (3, 2)
+    assert np.all(a >= [-1.0, 0.0]) and np.all(a <= [1.0, 2.0])
+    again = CEMPlanner(np.array([-1.0, 0.0]), np.array([1.0, 2.0]), PlannerSettings(horizon=2))
+    assert np.array_equal(again.plan(score, np.random.default_rng(4)), a)
+    planner.reset()
+    assert planner.mean is None
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("horizon", -1), ("samples", 1), ("iterations", 0), ("elites", 65), ("init_std", -0.1),
+     ("min_std", float("nan"))],
+)  # fmt: skip
+def test_bad_planner_settings_are_refused(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=field):
+        PlannerSettings(**{field: value})
+
+
+def test_a_score_of_the_wrong_shape_is_refused() -> None:
+    planner = CEMPlanner(np.array([-1.0]), np.array([1.0]))
+    with pytest.raises(ValueError, match="shape"):
+        planner.plan(lambda U: np.zeros(3), np.random.default_rng(0))
+    with pytest.raises(ValueError, match="high > low"):
+        CEMPlanner(np.array([1.0]), np.array([1.0]))

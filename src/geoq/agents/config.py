@@ -23,10 +23,12 @@ from geoq.learners.scaling import InputScaling
 
 __all__ = [
     "HYPERPARAMETERS",
+    "PLANNERS",
     "PRIORS",
     "REPLAYS",
     "GPQConfig",
     "Hyperparameters",
+    "Planner",
     "Prior",
     "Replay",
     "check_learn_arguments",
@@ -51,6 +53,8 @@ Prior = Literal["auto", "midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
+Planner = Literal["off", "cem"]
+PLANNERS: tuple[str, ...] = ("off", "cem")
 Hyperparameters = Literal["auto", "rule", "evidence"]
 HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
 
@@ -219,6 +223,10 @@ class GPQConfig:
     pendulums, the mountain car: their agents are unchanged); ``on``: always; ``off``:
     never. With a map, training actions follow its explore plan and greedy actions its
     exploit plan where it knows a route to a termination (the GP's elsewhere)."""
+    planner: Planner = "off"
+    """``cem``: learn a GP model of the task's steps and act by planning through it, the
+    agent's ``Q`` closing the horizon (:mod:`geoq.agents.model_planning`); ``off``: act
+    on ``Q`` alone. Where both a map and a planner would act, the map's plan comes first."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -230,7 +238,7 @@ class GPQConfig:
         for name, allowed in (
             ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
             ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
-            ("explore_map", EXPLORE_MAP_MODES),
+            ("explore_map", EXPLORE_MAP_MODES), ("planner", PLANNERS),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")

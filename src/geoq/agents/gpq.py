@@ -36,18 +36,16 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 6. **Exploration over states** where the moves are the actions' own (``explore_map``):
    a map of the observed moves (:mod:`geoq.agents.map_explorer`) picks the training
    actions, and the greedy ones where it knows a route to a termination.
-7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`,
-   ``[r_min, r_max] / (1 - gamma)`` of the rewards declared or observed so far,
-   widened by the rewards of terminating steps (received once, they count by
-   themselves): every discounted return lies there, and without it regression +
-   max diverged (targets of 3e5 after 9 episodes on the swing-up).
+7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`, where
+   every discounted return lies (without it regression + max diverged).
+8. **Planning** (``planner="cem"``): actions planned through a learned GP model of
+   the steps, closed by ``Q`` (:mod:`geoq.agents.model_planning`).
 
 ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
 
-**Threads.** A learning step (an env step, its fitted-Q phase, an episode's callback) holds
-the agent's re-entrant lock, as do ``predict``, ``q_candidates``, ``q_mean``, ``train``,
-``save``, ``set_env``: other threads see the agent between steps (a callback may predict and
-save). ``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
+**Threads.** A learning step (an env step, its phase, an episode's callback) holds the
+agent's re-entrant lock, as do ``predict``, ``q_candidates``, ``q_mean``, ``train``, ``save``,
+``set_env``. ``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
 """
 
 from __future__ import annotations
@@ -72,6 +70,7 @@ from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
 from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
 from geoq.agents.map_explorer import MapExplorer
+from geoq.agents.model_planning import ModelPlanning
 from geoq.agents.replay import replay_strategy
 from geoq.agents.state import LearningState, TrainingLog, as_range, check_target
 from geoq.gp import SparseOnlineGP
@@ -175,6 +174,7 @@ class GPQAgent:
         self.phase = FittedQPhase(config, replay)
         self.explorer = MapExplorer(config.explore_map, candidates, self.action_low,
                                     self.action_high, config.gamma)  # fmt: skip
+        self.planning = ModelPlanning(config, obs_dim, self.action_low, self.action_high)
 
     @property
     def max_bv(self) -> int:
@@ -231,10 +231,9 @@ class GPQAgent:
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[FloatArray, None]:
         """The action ``[d_a]`` (or ``[n, d_a]`` for ``n`` observations) and ``None``.
 
-        ``deterministic=True`` maximises the posterior mean (greedy); otherwise
-        the configured exploration is used (it draws from the agent's generator).
-        Before the warm-up has fixed a data-driven input scaling: the warm-up's policy.
-        """
+        ``deterministic=True``: the greedy action (the posterior mean's best, or the plan's);
+        otherwise the configured exploration (drawing from the agent's generator). Before
+        the warm-up has fixed a data-driven input scaling: the warm-up's policy."""
         if not isinstance(deterministic, bool | np.bool_):
             raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
         with self._lock:  # between two learning steps of another thread
@@ -245,6 +244,8 @@ class GPQAgent:
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
             actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
+            if deterministic and self.planning.active:
+                actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None
 
@@ -257,13 +258,15 @@ class GPQAgent:
         )  # fmt: skip
 
     def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
-        """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one,
-        else uniformly random during the warm-up, else by ``exploration``."""
+        """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one, else
+        uniformly random during the warm-up, else planned, else by ``exploration``."""
         a = self.explorer.action(s, self.rng)
         if a is not None:
             return a
         if q is None:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
+        if self.planning.active:
+            return self.planning.action(self, s, self.rng)
         return self._act(*q, self.config.exploration)
 
     def _obs_scale(self) -> FloatArray:
@@ -283,14 +286,12 @@ class GPQAgent:
               callback: Callback = None) -> GPQAgent:  # fmt: skip
         """Interact with the env for ``total_timesteps`` steps, learning online. Returns self.
 
-        ``callback`` is called with each finished episode's record; returning
-        ``False`` stops learning after that episode. A fitted-Q phase runs at the
-        end, so the agent reflects every step taken. Each call starts a new
-        episode, seeding the env's first reset from the agent's generator, so a
-        saved and reloaded agent continues exactly as the original would; an
-        episode cut short by ``total_timesteps`` is not recorded. A step the env answers
-        wrongly (:func:`~geoq.agents._env.env_step`) raises a ``ValueError`` and is not
-        taken: the agent stays as after the step before (as before the call if none).
+        ``callback`` is called with each finished episode's record; ``False`` stops learning
+        after that episode. A fitted-Q phase runs at the end. Each call starts a new episode,
+        seeding the env's first reset from the agent's generator, so a saved and reloaded
+        agent continues exactly as the original would; an episode cut short is not recorded.
+        A step the env answers wrongly (:func:`~geoq.agents._env.env_step`) raises a
+        ``ValueError`` and is not taken (the agent stays as after the step before).
         ``learn(0)`` changes nothing. Other threads may predict meanwhile (module docstring).
         """
         check_learn_arguments(total_timesteps, progress_bar, callback)
@@ -329,6 +330,7 @@ class GPQAgent:
         Each step (with its phase and, at the end, the callback) holds the agent's lock."""
         s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
         q = self._q_or_none(s)  # (q_candidates holds the lock)
+        self.planning.start_episode()
         ep_return, steps = 0.0, 0
         while steps < max_steps:
             with self._lock:
@@ -352,12 +354,10 @@ class GPQAgent:
     def _observe(
         self, env: gymnasium.Env, s: FloatArray, q: QValues, first: bool = False
     ) -> tuple[_env.EnvStep, QValues]:
-        """One step at ``s`` (``Q`` there: ``q``; ``first`` of its episode: a graph kernel's
-        roll-out starts): act, check what the env returned, store the transition with its
-        bootstrapped target and stream it into the GP (JC12 §6's online update); returns
-        the step and ``Q`` at its next state (the next step's choice). A refused step
-        (:func:`env_step`, a reward whose values pass ``MAX_VALUE``) raises before anything
-        changes; the generator is put back."""
+        """One step at ``s`` (``Q`` there: ``q``; ``first`` of its episode): act, check what
+        the env returned, store the transition with its bootstrapped target and stream it
+        into the GP (JC12 §6); returns the step and ``Q`` at its next state. A refused step
+        raises before anything changes (the generator put back)."""
         st, g, rng_state = self.state, self.config.gamma, self.rng.bit_generator.state
         try:
             step = _env.env_step(env, self._explore(s, q), self.obs_dim, self._obs_scale())
@@ -377,6 +377,7 @@ class GPQAgent:
         self.buffer.add(s[0], step.action[0], step.reward, step.next_state[0], step.terminated,
                         target=y)  # fmt: skip
         self.explorer.observe(self.buffer, *_env.observation_box(env))
+        self.planning.observe(self.buffer, self.rng)
         if st.scaling_pending and len(self.buffer) >= self.config.warmup_steps:
             self._finish_warmup()
             q = self.q_candidates(step.next_state)

@@ -1,0 +1,116 @@
+"""The agent's learned dynamics model and the planner that acts through it (``planner``).
+
+With ``planner="cem"`` a :class:`~geoq.models.GPDynamicsModel` learns the task's steps
+from the agent's transitions: fitted once ``warmup_steps`` transitions are stored and
+again each time they have doubled (the evidence's length-scales and the
+standardisation follow the data), every other transition streamed into it online.
+Each action, in training and greedy alike, is then the first of the plan
+:class:`~geoq.models.CEMPlanner` finds through the model, closed by the agent's own
+``Q`` (the posterior mean at the plan's last state and action: model-based value
+expansion, Feinberg et al. 2018; TD-MPC's terminal value), halted with the least
+value any return can have where the model does not know (:func:`~geoq.models.model_returns`).
+
+Training plans draw from the agent's generator (the CEM's samples and the model's
+trajectory samples); greedy plans (``predict(deterministic=True)``) draw from a
+generator of their own, seeded by the agent's seed and step count, and keep their own
+warm start: they change nothing the learning reads.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from geoq._io import ArchiveError
+from geoq._typing import FloatArray
+from geoq.agents.buffer import TransitionBuffer
+from geoq.agents.config import GPQConfig
+from geoq.models import CEMPlanner, GPDynamicsModel, PlannerSettings, model_returns
+
+if TYPE_CHECKING:
+    from geoq.agents.gpq import GPQAgent
+
+__all__ = ["ModelPlanning"]
+
+
+class ModelPlanning:
+    """The model, its fit schedule and two planners (training's and greedy's)."""
+
+    def __init__(self, config: GPQConfig, obs_dim: int, low: FloatArray, high: FloatArray):
+        self.mode, self.window = config.planner, config.window
+        self.first_fit = max(config.warmup_steps, 2)
+        self.model = GPDynamicsModel(obs_dim, low.shape[0])
+        self.training = CEMPlanner(low, high, PlannerSettings())
+        self.greedy = CEMPlanner(low, high, PlannerSettings())
+        self.next_fit = self.first_fit
+
+    @property
+    def active(self) -> bool:
+        """Whether actions are planned now (a planner chosen and a model fitted)."""
+        return self.mode != "off" and self.model.fitted
+
+    def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
+        """Take in the buffer's newest transition: a fit when one is due, else a stream."""
+        if self.mode == "off":
+            return
+        n = len(buffer)
+        if n >= self.next_fit:
+            self.model.fit(*buffer.arrays(last=self.window), rng)
+            self.next_fit = 2 * n
+        elif self.model.fitted:
+            self.model.observe(*(column[-1] for column in buffer.arrays(last=1)))
+
+    def start_episode(self) -> None:
+        """A new episode: the training plan's warm start is forgotten."""
+        self.training.reset()
+
+    def action(self, agent: GPQAgent, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
+        """The planned action ``[1, d_a]`` at ``s`` [1, d_s]; ``rng`` None: a greedy plan."""
+        planner = self.training if rng is not None else self.greedy
+        if rng is None:
+            seed = [agent.seed if agent.seed is not None else 0, agent.num_timesteps]
+            rng = np.random.default_rng(np.random.SeedSequence(seed))
+        lo = agent.value_bounds()[0]
+
+        def q_value(S: FloatArray, A: FloatArray) -> FloatArray:
+            mean = agent.gp.predict(agent.inputs(S, A))
+            return np.clip(agent.state.y_mean + agent.state.y_scale * mean, *agent.value_bounds())
+
+        def score(A: FloatArray) -> FloatArray:
+            return model_returns(self.model, s[0], A, gamma=agent.config.gamma, value=q_value,
+                                 floor=lo, rng=rng)  # fmt: skip
+
+        return planner.plan(score, rng)[None, :]
+
+    # ------------------------------------------------------------------ persistence
+    def to_arrays(self) -> dict[str, Any]:
+        """The model and schedule as arrays (an agent's archive, prefix ``model/``)."""
+        if self.mode == "off":
+            return {}
+        plans = {f"plan_{name}": p.mean for name, p in (("training", self.training),
+                 ("greedy", self.greedy)) if p.mean is not None}  # fmt: skip
+        return self.model.to_arrays() | plans | {"next_fit": np.array(self.next_fit)}
+
+    def restore(self, a: dict[str, Any], source: str) -> None:
+        """Inverse of :meth:`to_arrays`; ``ValueError`` where it does not fit this planning."""
+        if self.mode == "off":
+            if a:
+                raise ValueError("the file holds a dynamics model, but its config's planner is off")
+            return
+        model = GPDynamicsModel.from_arrays(a, source)
+        self.next_fit = int(a["next_fit"])
+        if (model.obs_dim, model.action_dim) != (self.model.obs_dim, self.model.action_dim):
+            raise ValueError(f"the dynamics model's dimensions {model.obs_dim}, {model.action_dim} "
+                             "are not the agent's")  # fmt: skip
+        if model.fitted != (self.next_fit > self.first_fit) or self.next_fit < self.first_fit:
+            raise ValueError(f"next_fit {self.next_fit} does not fit a model fitted={model.fitted}")
+        self.model = model
+        for name, planner in (("training", self.training), ("greedy", self.greedy)):
+            planner.mean = None
+            if f"plan_{name}" in a:
+                mean = np.asarray(a[f"plan_{name}"], dtype=np.float64)
+                shape = (planner.settings.horizon + 1, planner.low.shape[0])
+                if mean.shape != shape or not np.all(np.abs(mean) <= 1.0):
+                    raise ArchiveError(f"{source}: plan_{name} must be {shape} within [-1, 1]")
+                planner.mean = mean

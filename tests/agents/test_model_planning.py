@@ -1,0 +1,109 @@
+"""The agent with a learned dynamics model and a planner (``planner="cem"``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geoq._io import ArchiveError
+from geoq.agents import GPQAgent
+
+from ._tasks import PointToGoal
+
+SETTINGS = {"planner": "cem", "warmup_steps": 40, "n_candidates": 5}
+
+
+def _agent(seed: int = 0, **extra: object) -> GPQAgent:
+    return GPQAgent(PointToGoal(), seed=seed, **{**SETTINGS, **extra})
+
+
+def _steps_to_goal(agent: GPQAgent, start: float) -> int:
+    env = PointToGoal()
+    obs, _ = env.reset(seed=0, options={"state": [start]})
+    for t in range(1, 41):
+        obs, _, terminated, _, _ = env.step(agent.predict(obs)[0])
+        if terminated:
+            return t
+    return 41
+
+
+def test_the_model_is_fitted_at_the_warm_up_and_then_takes_each_step() -> None:
+    agent = _agent().learn(39)
+    assert not agent.planning.model.fitted and not agent.planning.active
+    agent.learn(21)
+    model = agent.planning.model
+    assert agent.planning.active and model.n_seen == 60
+    assert agent.planning.next_fit == 80
+    agent.learn(30)
+    assert model.n_seen == 80 + 10 and agent.planning.next_fit == 160  # refitted at 80
+
+
+def test_planning_learns_the_point_task_and_acts_in_the_box() -> None:
+    agent = _agent().learn(300)
+    for start in (-1.0, -0.5, 0.0):
+        # the optimum is 1 + ceil((0.7 - start) / 0.1) steps at a = 1; allow 3 more
+        assert _steps_to_goal(agent, start) <= int(np.ceil((0.7 - start) / 0.1)) + 4
+    actions = agent.buffer.arrays()[1]
+    assert np.all(actions >= -1.0) and np.all(actions <= 1.0)
+
+
+def test_the_same_seed_learns_the_same_steps() -> None:
+    a, b = _agent(3).learn(120), _agent(3).learn(120)
+    assert all(np.array_equal(x, y) for x, y in zip(a.buffer.arrays(), b.buffer.arrays(),
+                                                    strict=True))  # fmt: skip
+
+
+def test_a_greedy_plan_draws_nothing_from_the_learning() -> None:
+    a, b = _agent(4).learn(80), _agent(4).learn(80)
+    state = a.rng.bit_generator.state
+    for x in np.linspace(-1.0, 0.6, 5):
+        a.predict(np.array([x]))
+    assert a.rng.bit_generator.state == state
+    a.learn(40)
+    b.learn(40)
+    assert np.array_equal(a.buffer.arrays()[1], b.buffer.arrays()[1])
+
+
+def test_save_and_load_continue_identically_model_included(tmp_path) -> None:
+    agent = _agent(5).learn(90)
+    for x in (-0.4, 0.1):
+        agent.predict(np.array([x]))  # a greedy warm start, saved with the plans
+    agent.save(tmp_path / "a.npz")
+    loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
+    assert loaded.planning.model.n_seen == agent.planning.model.n_seen
+    obs = np.array([-0.3])
+    assert np.array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
+    agent.learn(50)
+    loaded.learn(50)
+    for x, y in zip(agent.buffer.arrays(), loaded.buffer.arrays(), strict=True):
+        assert np.array_equal(x, y)
+
+
+def test_a_stored_model_must_match_the_config(tmp_path) -> None:
+    agent = _agent(6).learn(60)
+    agent.save(tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz", allow_pickle=False) as f:
+        arrays = dict(f)
+    off = {k: v for k, v in arrays.items()}
+    meta = str(off["meta"]).replace('"planner": "cem"', '"planner": "off"')
+    off["meta"] = np.asarray(meta)
+    np.savez(tmp_path / "off.npz", **off)
+    with pytest.raises(ArchiveError, match="planner"):
+        GPQAgent.load(tmp_path / "off.npz", env=PointToGoal())
+    arrays["model/next_fit"] = np.array(10)
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ArchiveError, match="next_fit"):
+        GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())
+
+
+def test_without_a_planner_nothing_is_modelled(tmp_path) -> None:
+    agent = GPQAgent(PointToGoal(), seed=0, warmup_steps=40).learn(60)
+    assert agent.config.planner == "off" and not agent.planning.model.fitted
+    agent.save(tmp_path / "a.npz")
+    with np.load(tmp_path / "a.npz", allow_pickle=False) as f:
+        assert not any(k.startswith("model/") for k in f.files)
+
+
+def test_an_unknown_planner_is_refused() -> None:
+    with pytest.raises(ValueError, match="planner"):
+        GPQAgent(PointToGoal(), planner="mpc")

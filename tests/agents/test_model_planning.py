@@ -47,8 +47,9 @@ def test_planning_learns_the_point_task_and_acts_in_the_box() -> None:
     assert np.all(actions >= -1.0) and np.all(actions <= 1.0)
 
 
-def test_the_same_seed_learns_the_same_steps() -> None:
-    a, b = _agent(3).learn(120), _agent(3).learn(120)
+@pytest.mark.parametrize("planner", ["cem", "cem-q"])
+def test_the_same_seed_learns_the_same_steps(planner: str) -> None:
+    a, b = _agent(3, planner=planner).learn(120), _agent(3, planner=planner).learn(120)
     assert all(np.array_equal(x, y) for x, y in zip(a.buffer.arrays(), b.buffer.arrays(),
                                                     strict=True))  # fmt: skip
 

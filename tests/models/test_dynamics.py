@@ -66,8 +66,10 @@ def test_batched_prediction_is_each_gps_own_prediction() -> None:
     for j, gp in enumerate(model.gps):
         assert gp is not None
         mu, sd = gp.predict(Xq, return_std=True)
-        np.testing.assert_allclose(mean[:, j], model.y_mean[j] + model.y_scale[j] * mu,
-                                   rtol=1e-8, atol=1e-10)  # fmt: skip
+        expected = model.y_mean[j] + model.y_scale[j] * mu
+        if j == 3:  # the reward: within the rewards seen
+            expected = np.clip(expected, *model.reward_range)
+        np.testing.assert_allclose(mean[:, j], expected, rtol=1e-8, atol=1e-10)
         np.testing.assert_allclose(std[:, j] ** 2, (model.y_scale[j] * sd) ** 2,
                                    rtol=0, atol=1e-9 * model.prior_std[j] ** 2)  # fmt: skip
     assert np.all(std >= 0)
@@ -78,6 +80,18 @@ def test_far_from_the_data_the_std_is_the_prior_std() -> None:
     model = GPDynamicsModel(2, 1).fit(*_transitions(200, rng), rng)
     _, std = model.predict(np.full((1, 2), 1e3), np.zeros((1, 1)))
     np.testing.assert_allclose(std[0], model.prior_std, rtol=1e-9)
+
+
+def test_the_predicted_reward_stays_within_the_rewards_seen() -> None:
+    rng = np.random.default_rng(8)
+    S, A, _, S2, T = _transitions(200, rng)
+    R = np.where(S[:, 0] > 0.5, 0.0, 1.0)  # a jump: the GP overshoots beside it
+    model = GPDynamicsModel(2, 1).fit(S, A, R, S2, T, rng)
+    Sq = np.column_stack([np.linspace(-1.5, 1.5, 301), np.zeros(301)])
+    mean, _ = model.predict(Sq, np.zeros((301, 1)))
+    assert mean[:, 2].min() >= 0.0 and mean[:, 2].max() <= 1.0
+    model.observe(S[0], A[0], 3.0, S2[0], False)
+    assert np.array_equal(model.reward_range, [0.0, 3.0])
 
 
 def test_a_constant_output_is_its_constant_without_uncertainty() -> None:

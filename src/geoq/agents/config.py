@@ -53,8 +53,8 @@ Prior = Literal["auto", "midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
-Planner = Literal["off", "cem"]
-PLANNERS: tuple[str, ...] = ("off", "cem")
+Planner = Literal["off", "cem", "cem-q"]
+PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q")
 Hyperparameters = Literal["auto", "rule", "evidence"]
 HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
 
@@ -224,9 +224,10 @@ class GPQConfig:
     never. With a map, training actions follow its explore plan and greedy actions its
     exploit plan where it knows a route to a termination (the GP's elsewhere)."""
     planner: Planner = "off"
-    """``cem``: learn a GP model of the task's steps and act by planning through it, the
-    agent's ``Q`` closing the horizon (:mod:`geoq.agents.model_planning`); ``off``: act
-    on ``Q`` alone. Where both a map and a planner would act, the map's plan comes first."""
+    """``cem``: learn a GP model of the task's steps and act by planning through it over
+    a short horizon (:mod:`geoq.agents.model_planning`); ``cem-q``: the same, the plans
+    closed by the agent's ``Q``; ``off``: act on ``Q`` alone. Where both a map and a
+    planner would act, the map's plan comes first."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones

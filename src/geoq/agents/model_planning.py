@@ -1,14 +1,18 @@
 """The agent's learned dynamics model and the planner that acts through it (``planner``).
 
-With ``planner="cem"`` a :class:`~geoq.models.GPDynamicsModel` learns the task's steps
-from the agent's transitions: fitted once ``warmup_steps`` transitions are stored and
-again each time they have doubled (the evidence's length-scales and the
-standardisation follow the data), every other transition streamed into it online.
+With ``planner="cem"`` or ``"cem-q"`` a :class:`~geoq.models.GPDynamicsModel` learns
+the task's steps from the agent's transitions: fitted once ``warmup_steps``
+transitions are stored and again each time they have doubled (on the most recent
+``window``: the evidence's length-scales and the standardisation follow the data),
+every other transition streamed into it online.
 Each action, in training and greedy alike, is then the first of the plan
-:class:`~geoq.models.CEMPlanner` finds through the model, closed by the agent's own
-``Q`` (the posterior mean at the plan's last state and action: model-based value
-expansion, Feinberg et al. 2018; TD-MPC's terminal value), halted with the least
-value any return can have where the model does not know (:func:`~geoq.models.model_returns`).
+:class:`~geoq.models.CEMPlanner` finds through the model, halted with the least value
+any return can have where the model does not know (:func:`~geoq.models.model_returns`).
+With ``cem-q`` the plans are closed by the agent's own ``Q`` (the posterior mean at the
+plan's last state and action: model-based value expansion, Feinberg et al. 2018;
+TD-MPC's terminal value); with ``cem`` they end at the horizon. Measured, the ``Q``
+learned alongside made the plans worse on ``InvertedPendulum-v5`` and ``Reacher-v5``
+(docs/design-notes.md).
 
 Training plans draw from the agent's generator (the CEM's samples and the model's
 trajectory samples); greedy plans (``predict(deterministic=True)``) draw from a
@@ -77,8 +81,10 @@ class ModelPlanning:
             mean = agent.gp.predict(agent.inputs(S, A))
             return np.clip(agent.state.y_mean + agent.state.y_scale * mean, *agent.value_bounds())
 
+        value = q_value if self.mode == "cem-q" else None
+
         def score(A: FloatArray) -> FloatArray:
-            return model_returns(self.model, s[0], A, gamma=agent.config.gamma, value=q_value,
+            return model_returns(self.model, s[0], A, gamma=agent.config.gamma, value=value,
                                  floor=lo, rng=rng)  # fmt: skip
 
         return planner.plan(score, rng)[None, :]

@@ -12,7 +12,11 @@ transitions; its posterior is a :class:`~geoq.gp.SparseOnlineGP` of at most
 ``max_bv`` basis vectors into which every transition is streamed (a refit at
 :meth:`GPDynamicsModel.fit`, one step at a time by :meth:`GPDynamicsModel.observe`).
 An output that has been constant in the data (a task that never terminated) is that
-constant, with no uncertainty, until the next fit.
+constant, with no uncertainty, until the next fit. The predicted reward is clipped to
+the range of the rewards seen: a planner otherwise seeks out the GP's overshoot next
+to a jump (``InvertedPendulum-v5``'s reward, 1 per step alive and 0 at the step that
+ends the episode, predicted at up to 1.02 beside the terminal states, drew the
+greedy plans there: docs/design-notes.md).
 
 Prediction is batched over particles and outputs. Each GP's posterior is
 ``mean = k_x^T alpha`` and ``var = k(x, x) - |W^T k_x|^2`` with ``W W^T = -C`` (the
@@ -103,7 +107,8 @@ class GPDynamicsModel:
     Attributes (after :meth:`fit`): ``x_mean``, ``x_scale`` [D]; ``y_mean``, ``y_scale``
     [J] with ``J = d_s + 2`` (state changes, reward, termination); ``gps`` [J] (None for
     a constant output); ``prior_std`` [J] (an output's std far from every transition, 0
-    for a constant); ``n_seen`` (transitions taken in).
+    for a constant); ``n_seen`` (transitions taken in); ``reward_range`` [2] (the least
+    and largest reward taken in).
     """
 
     def __init__(self, obs_dim: int, action_dim: int, settings: ModelSettings | None = None):
@@ -156,6 +161,7 @@ class GPDynamicsModel:
             0.0 if gp is None else self.y_scale[j] * np.sqrt(_kernel(gp).variance)
             for j, gp in enumerate(self.gps)
         ])  # fmt: skip
+        self.reward_range = np.array([Y[:, self.obs_dim].min(), Y[:, self.obs_dim].max()])
         self.n_seen, self._stack = X.shape[0], None
         return self
 
@@ -189,6 +195,8 @@ class GPDynamicsModel:
         for j, gp in enumerate(self.gps):
             if gp is not None:
                 gp.update(x, (Y[0, j] - self.y_mean[j]) / self.y_scale[j])
+        r = Y[0, self.obs_dim]
+        self.reward_range = np.array([min(self.reward_range[0], r), max(self.reward_range[1], r)])
         self.n_seen += 1
         self._stack = None
 
@@ -213,8 +221,9 @@ class GPDynamicsModel:
     def predict(self, states: FloatArray, actions: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Predictive mean and std (of the latent outputs, noise excluded) ``[P, J]`` of
         ``P`` particles ``states`` [P, d_s], ``actions`` [P, d_a], in the data's units:
-        columns ``0..d_s-1`` the state change, ``d_s`` the reward, ``d_s + 1`` the
-        termination. Inputs are not validated (a planner's inner loop)."""
+        columns ``0..d_s-1`` the state change, ``d_s`` the reward (its mean within
+        ``reward_range``), ``d_s + 1`` the termination. Inputs are not validated (a
+        planner's inner loop)."""
         if not self.fitted:
             raise RuntimeError("predict needs a fitted model: call fit first")
         st, P = self._stacked(), states.shape[0]
@@ -230,6 +239,7 @@ class GPDynamicsModel:
         live = [j for j, gp in enumerate(self.gps) if gp is not None]
         mean[:, live] += z_mean.T * self.y_scale[live]
         std[:, live] = np.sqrt(np.maximum(z_var.T, 0.0)) * self.y_scale[live]
+        np.clip(mean[:, self.obs_dim], *self.reward_range, out=mean[:, self.obs_dim])
         return mean, std
 
     # ------------------------------------------------------------------ persistence
@@ -244,6 +254,7 @@ class GPDynamicsModel:
             return out
         out |= {"x_mean": self.x_mean, "x_scale": self.x_scale, "y_mean": self.y_mean,
                 "y_scale": self.y_scale, "prior_std": self.prior_std,
+                "reward_range": self.reward_range,
                 "live": np.array([gp is not None for gp in self.gps])}  # fmt: skip
         for j, gp in enumerate(self.gps):
             if gp is not None:
@@ -263,10 +274,12 @@ class GPDynamicsModel:
                 return model
             J, D = model.n_outputs, obs_dim + action_dim
             for name, n in (("x_mean", D), ("x_scale", D), ("y_mean", J), ("y_scale", J),
-                            ("prior_std", J), ("live", J)):  # fmt: skip
+                            ("prior_std", J), ("live", J), ("reward_range", 2)):  # fmt: skip
                 model.__dict__[name] = as_float_vector(a[name], name, n)
-            if not np.all(np.isfinite(model.x_scale)) or np.any(model.x_scale <= 0):
-                raise ValueError("x_scale must be finite and positive")
+            if np.any(model.x_scale <= 0):
+                raise ValueError("x_scale must be positive")
+            if model.reward_range[0] > model.reward_range[1]:
+                raise ValueError("reward_range must be (least, largest)")
             model.gps = [
                 SparseOnlineGP.from_arrays(
                     {k.split("/", 1)[1]: v for k, v in a.items() if k.startswith(f"gp{j}/")},

@@ -2,8 +2,9 @@
 
 Not a speed benchmark: the measurement behind the design notes' section "Planning
 through a learned GP model in the agent". The agent is ``GPQAgent(env_id, seed=seed,
-planner="cem")`` with every other setting its default; ``--planner`` overrides fields
-of :class:`geoq.models.PlannerSettings` (for both the training and the greedy plans).
+planner=mode)`` (``--mode cem`` or ``cem-q``) with every other setting its default;
+``--planner`` overrides fields of :class:`geoq.models.PlannerSettings` (for both the
+training and the greedy plans).
 Every ``--every`` steps it prints the mean greedy return of ``--episodes`` episodes
 (reset seeds ``10_000 + 100 seed + episode``, held out from training), the learning's
 wall time so far and the greedy plan's time per step.
@@ -49,9 +50,10 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=500)
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--planner", default="{}", help="PlannerSettings fields as JSON")
+    ap.add_argument("--mode", default="cem", choices=["cem", "cem-q"])
     a = ap.parse_args()
     warnings.simplefilter("ignore")  # the evidence fits' bound warnings, one per output
-    agent = GPQAgent(a.env, seed=a.seed, planner="cem")
+    agent = GPQAgent(a.env, seed=a.seed, planner=a.mode)
     settings = PlannerSettings(**json.loads(a.planner))
     for planner in (agent.planning.training, agent.planning.greedy):
         planner.settings = settings
@@ -65,8 +67,9 @@ def main() -> None:
         returns, steps = greedy_returns(agent, a.env, a.seed, a.episodes)
         per_step = 1000 * (time.perf_counter() - t1) / steps
         print(
-            f"{a.env} seed {a.seed} {a.planner} step {done}: greedy {np.mean(returns):.1f} "
-            f"{returns}; learning {learning:.0f} s; greedy plan {per_step:.1f} ms/step",
+            f"{a.env} seed {a.seed} {a.mode} {a.planner} step {done}: "
+            f"greedy {np.mean(returns):.1f} {returns}; learning {learning:.0f} s; "
+            f"greedy plan {per_step:.1f} ms/step",
             flush=True,
         )
 

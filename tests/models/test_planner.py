@@ -78,16 +78,26 @@ def test_through_a_learned_model_the_first_action_approaches_the_lqr_action() ->
         assert abs(a[0] - lqr[0]) < 0.05 * (1.0 + abs(lqr[0])), (a, lqr)
 
 
+class _Everywhere:
+    """Support that has seen every state."""
+
+    def distance(self, S: np.ndarray) -> np.ndarray:
+        return np.zeros(len(S))
+
+
 class _LinearModel:
     """The double integrator as a model: exact means, no uncertainty (a known model)."""
 
     obs_dim = 2
-    prior_std = np.ones(4)
+    support = _Everywhere()
 
     def predict(self, S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        change = S @ A_SYS.T + A @ B_SYS.T - S
-        mean = np.column_stack([change, _reward(S, A), np.zeros(len(S))])
+        mean = self.predict_mean(S, A)
         return mean, np.zeros_like(mean)
+
+    def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:
+        change = S @ A_SYS.T + A @ B_SYS.T - S
+        return np.column_stack([change, _reward(S, A), np.zeros(len(S))])
 
 
 def test_model_returns_through_a_known_model_are_the_exact_returns() -> None:

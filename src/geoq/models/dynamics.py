@@ -12,18 +12,20 @@ transitions; its posterior is a :class:`~geoq.gp.SparseOnlineGP` of at most
 ``max_bv`` basis vectors into which every transition is streamed (a refit at
 :meth:`GPDynamicsModel.fit`, one step at a time by :meth:`GPDynamicsModel.observe`).
 An output that has been constant in the data (a task that never terminated) is that
-constant, with no uncertainty, until the next fit. The predicted reward is clipped to
-the range of the rewards seen: a planner otherwise seeks out the GP's overshoot next
-to a jump (``InvertedPendulum-v5``'s reward, 1 per step alive and 0 at the step that
-ends the episode, predicted at up to 1.02 beside the terminal states, drew the
-greedy plans there: docs/design-notes.md).
+constant, with no uncertainty, until the next fit. Where the model has data is measured
+on the states seen (:class:`~geoq.models.support.StateSupport`), in the metric the
+outputs learned: each state input in units of the shortest length-scale any output
+gave it, so that an input no output depends on counts for nothing. The predicted
+reward is clipped to the range of the rewards seen: a planner otherwise seeks out the
+GP's overshoot next to a jump (``InvertedPendulum-v5``'s reward, 1 per step alive and
+0 at the step that ends the episode, was predicted at up to 1.02 beside the terminal
+states, and the greedy plans went there: docs/design-notes.md).
 
-Prediction is batched over particles and outputs. Each GP's posterior is
-``mean = k_x^T alpha`` and ``var = k(x, x) - |W^T k_x|^2`` with ``W W^T = -C`` (the
-GP's ``alpha`` and ``C``; ``W = R^{-1} U sqrt(lambda)`` from the eigenpairs of its
-whitened ``I - S``: a sum of squares, which keeps the variance's rounding at the
-prior's). Stacked into ``[J, m]`` and ``[J, m, m]`` arrays, a call about ``P``
-particles is a few batched matrix products of ``[J, P, m]``.
+Prediction: the means of ``P`` particles are one compiled loop over every output's own
+basis vectors (:mod:`geoq.models._nb_mean`), what a planner's roll-outs ask for. The
+std, where asked, is ``var = k(x, x) - |W^T k_x|^2`` per output, with ``W W^T = -C``
+(the GP's ``C``; ``W = R^{-1} F`` with ``F F^T`` the whitened ``I - S``: a sum of
+squares, which keeps the variance's rounding at the prior's).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from typing import Any
 
 import numpy as np
 import scipy.linalg
+from scipy.spatial.distance import cdist
 
 from geoq._io import ArchiveError
 from geoq._typing import FloatArray
@@ -41,6 +44,8 @@ from geoq._validation import as_float_matrix, as_float_vector, check_int, check_
 from geoq.gp import NumericalWarning, SparseOnlineGP
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.kernels.stationary import SquaredExponential
+from geoq.models._nb_mean import posterior_means
+from geoq.models.support import StateSupport
 
 __all__ = ["GPDynamicsModel", "ModelSettings"]
 
@@ -73,17 +78,17 @@ class ModelSettings:
 
 
 @dataclass(frozen=True)
-class _Stack:
-    """Every non-constant output's posterior weights, padded to one ``m``: ``scaled_basis``
-    [J, m, D] (basis / length-scales), ``basis_sq`` [J, m], ``alpha`` [J, m], ``W`` [J, m, m],
-    ``inv_ls`` [J, D], ``variance`` [J]; padded rows have zero weights."""
+class _Means:
+    """Every non-constant output's mean weights, one output after another: ``inv_ls``
+    [J, D], ``basis`` [M, D] (divided by the output's length-scales), ``offsets`` [J + 1],
+    ``alpha`` [M], ``variance`` [J]; ``live`` [J] the outputs' columns."""
 
-    scaled_basis: FloatArray
-    basis_sq: FloatArray
-    alpha: FloatArray
-    W: FloatArray
     inv_ls: FloatArray
+    basis: FloatArray
+    offsets: np.ndarray
+    alpha: FloatArray
     variance: FloatArray
+    live: np.ndarray
 
 
 def _kernel(gp: SparseOnlineGP) -> SquaredExponential:
@@ -92,13 +97,18 @@ def _kernel(gp: SparseOnlineGP) -> SquaredExponential:
 
 
 def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
-    """``W`` [m, m] with ``W W^T = -C = R^{-1} (I - S) R^{-T}`` (module docstring)."""
+    """``W`` [m, m] with ``W W^T = -C = R^{-1} (I - S) R^{-T}`` (module docstring): ``R^{-1}``
+    times a Cholesky factor of the whitened ``I - S`` (PSD: the posterior shrinks every
+    direction), or of its eigenvalues clipped at 0 where rounding made it indefinite."""
     m = gp.n_bv
-    R = gp.cholesky_factor
     _, S = gp.whitened_posterior
-    lam, U = np.linalg.eigh(np.eye(m) - 0.5 * (S + S.T))
-    Rinv = scipy.linalg.solve_triangular(R, np.eye(m), lower=False, check_finite=False)
-    return Rinv @ (U * np.sqrt(np.maximum(lam, 0.0)))
+    shrink = np.eye(m) - 0.5 * (S + S.T)
+    try:
+        F = np.linalg.cholesky(shrink)
+    except np.linalg.LinAlgError:
+        lam, U = np.linalg.eigh(shrink)
+        F = U * np.sqrt(np.maximum(lam, 0.0))
+    return scipy.linalg.solve_triangular(gp.cholesky_factor, F, lower=False, check_finite=False)
 
 
 class GPDynamicsModel:
@@ -118,7 +128,8 @@ class GPDynamicsModel:
         self.n_outputs = self.obs_dim + 2
         self.gps: list[SparseOnlineGP | None] = []
         self.n_seen = 0
-        self._stack: _Stack | None = None
+        self._means: _Means | None = None
+        self._factors: list[FloatArray] | None = None  # each output's W, when asked
 
     @property
     def fitted(self) -> bool:
@@ -162,7 +173,12 @@ class GPDynamicsModel:
             for j, gp in enumerate(self.gps)
         ])  # fmt: skip
         self.reward_range = np.array([Y[:, self.obs_dim].min(), Y[:, self.obs_dim].max()])
-        self.n_seen, self._stack = X.shape[0], None
+        d, D = self.obs_dim, X.shape[1]
+        relevance = [np.broadcast_to(_kernel(gp).lengthscale, (D,))[:d] for gp in self.gps if gp]
+        shortest = np.min(relevance, axis=0) if relevance else np.ones(d)
+        self.support = StateSupport(np.vstack([X[:, :d], X[:, :d] + Y[:, :d]]),
+                                    self.x_scale[:d] * shortest, rng)  # fmt: skip
+        self.n_seen, self._means, self._factors = X.shape[0], None, None
         return self
 
     def _fit_output(
@@ -197,49 +213,62 @@ class GPDynamicsModel:
                 gp.update(x, (Y[0, j] - self.y_mean[j]) / self.y_scale[j])
         r = Y[0, self.obs_dim]
         self.reward_range = np.array([min(self.reward_range[0], r), max(self.reward_range[1], r)])
+        self.support.add(X[0, : self.obs_dim] + Y[0, : self.obs_dim])
         self.n_seen += 1
-        self._stack = None
+        self._means, self._factors = None, None
 
     # ------------------------------------------------------------------ prediction
-    def _stacked(self) -> _Stack:
-        if self._stack is None:
-            live = [gp for gp in self.gps if gp is not None]
-            J, D = len(live), self.obs_dim + self.action_dim
-            m = max([gp.n_bv for gp in live], default=0)
-            basis, alpha, W = np.zeros((J, m, D)), np.zeros((J, m)), np.zeros((J, m, m))
-            inv_ls, variance = np.ones((J, D)), np.ones(J)
-            for i, gp in enumerate(live):
-                k = gp.n_bv
+    def _mean_weights(self) -> _Means:
+        if self._means is None:
+            live = [j for j, gp in enumerate(self.gps) if gp is not None]
+            D = self.obs_dim + self.action_dim
+            inv_ls = np.ones((len(live), D))
+            basis, alpha, offsets = [np.zeros((0, D))], [np.zeros(0)], [0]
+            variance = np.ones(len(live))
+            for i, j in enumerate(live):
+                gp = self.gps[j]
+                assert gp is not None
                 inv_ls[i] = 1.0 / np.broadcast_to(_kernel(gp).lengthscale, (D,))
-                basis[i, :k], alpha[i, :k] = gp.basis_vectors * inv_ls[i], gp.alpha
-                W[i, :k, :k] = _variance_factor(gp)
                 variance[i] = _kernel(gp).variance
-            self._stack = _Stack(basis, np.einsum("jmd,jmd->jm", basis, basis), alpha, W,
-                                 inv_ls, variance)  # fmt: skip
-        return self._stack
+                basis.append(gp.basis_vectors * inv_ls[i])
+                alpha.append(gp.alpha)
+                offsets.append(offsets[-1] + gp.n_bv)
+            cols = np.array(live, dtype=np.int64)
+            self._means = _Means(inv_ls, np.vstack(basis), np.array(offsets, dtype=np.int64),
+                                 np.concatenate(alpha), variance, cols)  # fmt: skip
+        return self._means
 
-    def predict(self, states: FloatArray, actions: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Predictive mean and std (of the latent outputs, noise excluded) ``[P, J]`` of
-        ``P`` particles ``states`` [P, d_s], ``actions`` [P, d_a], in the data's units:
-        columns ``0..d_s-1`` the state change, ``d_s`` the reward (its mean within
-        ``reward_range``), ``d_s + 1`` the termination. Inputs are not validated (a
-        planner's inner loop)."""
+    def predict_mean(self, states: FloatArray, actions: FloatArray) -> FloatArray:
+        """Predictive means ``[P, J]`` of ``P`` particles ``states`` [P, d_s], ``actions``
+        [P, d_a], in the data's units: columns ``0..d_s-1`` the state change, ``d_s`` the
+        reward (within ``reward_range``), ``d_s + 1`` the termination. Compiled
+        (:mod:`geoq.models._nb_mean`); inputs are not validated (a planner's inner loop)."""
         if not self.fitted:
             raise RuntimeError("predict needs a fitted model: call fit first")
-        st, P = self._stacked(), states.shape[0]
-        Z = self._inputs(states, actions)[None] * st.inv_ls[:, None, :]  # [J, P, D]
-        d2 = np.einsum("jpd,jpd->jp", Z, Z)[:, :, None] + st.basis_sq[:, None, :]
-        d2 -= 2.0 * Z @ st.scaled_basis.transpose(0, 2, 1)
-        K = st.variance[:, None, None] * np.exp(-0.5 * np.maximum(d2, 0.0))  # [J, P, m]
-        z_mean = np.einsum("jpm,jm->jp", K, st.alpha)
-        KW = K @ st.W
-        z_var = st.variance[:, None] - np.einsum("jpm,jpm->jp", KW, KW)
+        w, P = self._mean_weights(), states.shape[0]
+        z = np.empty((P, len(w.live)))
+        X = np.ascontiguousarray(self._inputs(states, actions))
+        posterior_means(X, w.inv_ls, w.basis, w.offsets, w.alpha, w.variance, z)
         mean = np.tile(self.y_mean, (P, 1))
-        std = np.zeros((P, self.n_outputs))
-        live = [j for j, gp in enumerate(self.gps) if gp is not None]
-        mean[:, live] += z_mean.T * self.y_scale[live]
-        std[:, live] = np.sqrt(np.maximum(z_var.T, 0.0)) * self.y_scale[live]
+        mean[:, w.live] += z * self.y_scale[w.live]
         np.clip(mean[:, self.obs_dim], *self.reward_range, out=mean[:, self.obs_dim])
+        return mean
+
+    def predict(self, states: FloatArray, actions: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`predict_mean` and the predictive std ``[P, J]`` (of the latent outputs,
+        noise excluded; 0 for a constant output)."""
+        mean = self.predict_mean(states, actions)
+        w = self._mean_weights()
+        if self._factors is None:
+            self._factors = [_variance_factor(self.gps[j]) for j in w.live]
+        X = self._inputs(states, actions)
+        std = np.zeros_like(mean)
+        for i, (j, W) in enumerate(zip(w.live, self._factors, strict=True)):
+            basis = w.basis[w.offsets[i] : w.offsets[i + 1]]
+            K = w.variance[i] * np.exp(-0.5 * cdist(X * w.inv_ls[i], basis, "sqeuclidean"))
+            KW = K @ W
+            var = w.variance[i] - np.einsum("pm,pm->p", KW, KW)
+            std[:, j] = np.sqrt(np.maximum(var, 0.0)) * self.y_scale[j]
         return mean, std
 
     # ------------------------------------------------------------------ persistence
@@ -259,6 +288,7 @@ class GPDynamicsModel:
         for j, gp in enumerate(self.gps):
             if gp is not None:
                 out |= {f"gp{j}/{k}": v for k, v in gp.to_arrays().items()}
+        out |= {f"support/{k}": v for k, v in self.support.to_arrays().items()}
         return out
 
     @classmethod
@@ -287,6 +317,11 @@ class GPDynamicsModel:
                 ) if live else None
                 for j, live in enumerate(model.__dict__.pop("live") > 0)
             ]  # fmt: skip
+            model.support = StateSupport.from_arrays(
+                {k[8:]: v for k, v in a.items() if k.startswith("support/")}
+            )
+            if model.support.scale.shape != (obs_dim,):
+                raise ValueError("the support's scale does not match the states")
         except (KeyError, TypeError, ValueError) as exc:
             raise ArchiveError(f"{source}: the dynamics model is damaged: {exc}") from exc
         return model

@@ -12,14 +12,15 @@ always one of the samples. Sequences live in the action box's centred coordinate
 :func:`model_returns` scores sequences by a model's predicted return, closed by a
 value: ``sum_{t<H} gamma^t r_t + gamma^H V(s_H, a_H)``, where the last action of a
 sequence is the one the value is asked about (TD-MPC's terminal ``Q(z_H, pi(z_H))``,
-Hansen et al. 2022). Where the model does not know, a roll-out halts: the
-probability of stopping at a step is the largest fraction of its prior variance an
-output's GP keeps there (0 on the data, 1 far from it, in the metric of that output's
-length-scales: an input an output ignores does not make it unknown), and a halted
-particle gets ``floor``, the least value any return can have (MOReL's halt, Kidambi
-et al. 2020). A predicted termination ends a particle's return after the step's
-reward. The state changes are sampled from the model's predictive Gaussian, one draw
-per particle and step (trajectory sampling, PETS).
+Hansen et al. 2022). Where the model has no data, a roll-out halts (MOReL's halt,
+Kidambi et al. 2020): a predicted state farther from every state seen than the data's
+own spacing (:class:`~geoq.models.support.StateSupport`) stops with probability
+``min(distance / spacing - 1, 1)``, and a halted particle gets ``floor``, the least
+value any return can have. The termination output, a GP regression of 0/1 flags, is
+read as a classifier at 1/2 (least-squares classification, Rasmussen & Williams 2006,
+§6.5): a predicted termination ends a particle's return after the step's reward.
+Roll-outs follow the model's means, or with ``rng`` draws from its predictive
+Gaussians, one per particle and step (trajectory sampling, PETS).
 """
 
 from __future__ import annotations
@@ -55,6 +56,14 @@ class PlannerSettings:
     """The Gaussian's first std, in half-ranges of the action box."""
     min_std: float = 0.05
     """Least std after a refit (keeps the search from collapsing onto one sequence)."""
+    keep_elites: bool = True
+    """Carry each iteration's elites into the next iteration's samples, and the last
+    decision's, shifted by one step, into the next decision's (iCEM, Pinneri et al. 2020)."""
+    act_best: bool = False
+    """Take the first action of the best sequence scored (iCEM) instead of the mean's."""
+    noise_beta: float = 0.0
+    """Colour of the sampling noise along the horizon: power ``1 / f^beta`` (0: white;
+    iCEM's 2: smooth sequences)."""
 
     def __post_init__(self) -> None:
         check_int(self.horizon, "horizon", minimum=0, maximum=1000)
@@ -63,13 +72,18 @@ class PlannerSettings:
         check_int(self.elites, "elites", minimum=1, maximum=self.samples)
         check_real(self.init_std, "init_std", low=0.0, high=10.0)
         check_real(self.min_std, "min_std", low=0.0, high=10.0)
+        check_real(self.noise_beta, "noise_beta", low=0.0, high=10.0)
+        if self.keep_elites and self.elites >= self.samples:
+            raise ValueError("keep_elites needs elites < samples (the kept ones replace samples)")
 
 
 class CEMPlanner:
     """The cross-entropy method over ``horizon + 1`` actions in the box ``[low, high]``.
 
-    ``mean`` [H + 1, d_a] (centred units) is the warm start of the next decision; None
-    after :meth:`reset` (an episode's start), when the search starts at the box's centre.
+    ``mean`` [H + 1, d_a] (centred units) is the warm start of the next decision, and
+    ``elites`` [E, H + 1, d_a] the last decision's best sequences, shifted (with
+    ``keep_elites``); both None after :meth:`reset` (an episode's start), when the search
+    starts at the box's centre.
     """
 
     def __init__(self, low: FloatArray, high: FloatArray, settings: PlannerSettings | None = None):
@@ -79,10 +93,11 @@ class CEMPlanner:
             raise ValueError("the action box must have high > low in every dimension")
         self.settings = settings or PlannerSettings()
         self.mean: FloatArray | None = None
+        self.elites: FloatArray | None = None
 
     def reset(self) -> None:
         """Forget the warm start (a new episode)."""
-        self.mean = None
+        self.mean = self.elites = None
 
     def actions(self, U: FloatArray) -> FloatArray:
         """Actions in the box from centred ones ``U`` [..., d_a]."""
@@ -96,17 +111,44 @@ class CEMPlanner:
         c, d = self.settings, self.low.shape[0]
         mean = np.zeros((c.horizon + 1, d)) if self.mean is None else self.mean
         std = np.full_like(mean, c.init_std)
+        kept = self.elites if c.keep_elites else None
+        best, best_value = mean, -np.inf
         for _ in range(c.iterations):
-            U = np.clip(mean + std * rng.standard_normal((c.samples, *mean.shape)), -1.0, 1.0)
+            noise = _noise(rng, (c.samples, *mean.shape), c.noise_beta)
+            U = np.clip(mean + std * noise, -1.0, 1.0)
             U[0] = mean
+            if kept is not None:
+                U[1 : 1 + len(kept)] = kept
             values = np.asarray(score(self.actions(U)), dtype=np.float64)
             if values.shape != (c.samples,):
                 raise ValueError(f"score returned shape {values.shape}; expected ({c.samples},)")
             values = np.where(np.isnan(values), -np.inf, values)
-            elite = U[np.argsort(-values, kind="stable")[: c.elites]]
+            order = np.argsort(-values, kind="stable")
+            if values[order[0]] > best_value:
+                best, best_value = U[order[0]], values[order[0]]
+            elite = U[order[: c.elites]]
             mean, std = elite.mean(axis=0), np.maximum(elite.std(axis=0), c.min_std)
+            kept = elite if c.keep_elites else None
         self.mean = np.vstack([mean[1:], mean[-1:]])
-        return self.actions(mean[0])
+        if kept is not None:
+            self.elites = np.concatenate([kept[:, 1:], kept[:, -1:]], axis=1)
+        return self.actions(best[0] if c.act_best else mean[0])
+
+
+def _noise(rng: np.random.Generator, shape: tuple[int, ...], beta: float) -> FloatArray:
+    """Standard normal noise ``shape`` = [P, T, d], coloured along ``T`` with power
+    ``1 / f^beta`` (scaled to unit variance over the draw); white at 0."""
+    if beta == 0.0 or shape[1] < 2:
+        return rng.standard_normal(shape)
+    T = shape[1]
+    f = np.fft.rfftfreq(T)
+    f[0] = f[1]  # the constant component gets the lowest frequency's power
+    amp = f ** (-beta / 2.0)
+    spectrum = rng.standard_normal((shape[0], len(f), shape[2])) + 1j * rng.standard_normal(
+        (shape[0], len(f), shape[2])
+    )
+    x = np.fft.irfft(spectrum * amp[None, :, None], n=T, axis=1)  # circular: stationary
+    return x / np.sqrt(np.mean(x**2))
 
 
 def model_returns(
@@ -126,17 +168,17 @@ def model_returns(
     d = model.obs_dim
     S = np.repeat(state[None, :], P, axis=0)
     alive, total = np.ones(P), np.zeros(P)
-    prior = np.where(model.prior_std > 0, model.prior_std, np.inf)  # [J]
     for t in range(H1 - 1):
-        mean, std = model.predict(S, actions[:, t])
-        p_end = np.clip(mean[:, d + 1], 0.0, 1.0)
-        unknown = np.clip(np.max((std / prior) ** 2, axis=1), 0.0, 1.0)
-        total += gamma**t * alive * (mean[:, d] + gamma * (1.0 - p_end) * unknown * floor)
-        alive = alive * (1.0 - p_end) * (1.0 - unknown)
-        step = (
-            mean[:, :d] if rng is None else mean[:, :d] + std[:, :d] * rng.standard_normal((P, d))
-        )
-        S = S + step
+        if rng is None:
+            mean = model.predict_mean(S, actions[:, t])
+            S = S + mean[:, :d]
+        else:
+            mean, std = model.predict(S, actions[:, t])
+            S = S + mean[:, :d] + std[:, :d] * rng.standard_normal((P, d))
+        ends = mean[:, d + 1] > 0.5
+        unknown = np.where(ends, 0.0, np.clip(model.support.distance(S) - 1.0, 0.0, 1.0))
+        total += gamma**t * alive * (mean[:, d] + gamma * unknown * floor)
+        alive = alive * ~ends * (1.0 - unknown)
     if value is not None:
         total += gamma ** (H1 - 1) * alive * value(S, actions[:, -1])
     return total

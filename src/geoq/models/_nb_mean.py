@@ -1,0 +1,45 @@
+"""Compiled (numba) posterior means of every output of a :class:`~geoq.models.GPDynamicsModel`.
+
+``mean[p, j] = variance_j sum_i alpha_ji exp(-|x_p / l_j - b_ji|^2 / 2)`` over output
+``j``'s own basis vectors ``b_ji`` (already divided by its length-scales ``l_j``),
+stored one output after another (``offsets``): no padding, and no ``[J, P, m]`` arrays.
+A planner's roll-outs ask only for means (their halts come from the data's support,
+not from the GPs' variances), so this is its inner loop.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from geoq._typing import FloatArray, IntArray
+
+__all__ = ["posterior_means"]
+
+
+@njit(cache=True, fastmath=True)
+def posterior_means(
+    X: FloatArray, inv_ls: FloatArray, basis: FloatArray, offsets: IntArray,
+    alpha: FloatArray, variance: FloatArray, out: FloatArray,
+) -> None:  # pragma: no cover - compiled  # fmt: skip
+    """``out`` [P, J] = the means of standardised inputs ``X`` [P, D] (module docstring);
+    ``inv_ls`` [J, D], ``basis`` [M, D], ``offsets`` [J + 1], ``alpha`` [M], ``variance`` [J]."""
+    P, D = X.shape
+    J = inv_ls.shape[0]
+    z = X[0].copy()
+    for p in range(P):
+        x = X[p]
+        for j in range(J):
+            ls = inv_ls[j]
+            for k in range(D):
+                z[k] = x[k] * ls[k]
+            acc = 0.0
+            for i in range(offsets[j], offsets[j + 1]):
+                b = basis[i]
+                d2 = 0.0
+                for k in range(D):
+                    diff = z[k] - b[k]
+                    d2 += diff * diff
+                acc += alpha[i] * math.exp(-0.5 * d2)
+            out[p, j] = variance[j] * acc

@@ -231,7 +231,9 @@ class GPDynamicsModel:
                 inv_ls[i] = 1.0 / np.broadcast_to(_kernel(gp).lengthscale, (D,))
                 variance[i] = _kernel(gp).variance
                 basis.append(gp.basis_vectors * inv_ls[i])
-                alpha.append(gp.alpha)
+                mu, _ = gp.whitened_posterior  # alpha = R^{-1} mu by one triangular solve
+                alpha.append(scipy.linalg.solve_triangular(gp.cholesky_factor, mu, lower=False,
+                                                           check_finite=False))  # fmt: skip
                 offsets.append(offsets[-1] + gp.n_bv)
             cols = np.array(live, dtype=np.int64)
             self._means = _Means(inv_ls, np.vstack(basis), np.array(offsets, dtype=np.int64),

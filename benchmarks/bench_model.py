@@ -1,9 +1,9 @@
-"""The dynamics model's batched prediction, against each output's GP asked in turn.
+"""The dynamics model's prediction, against each output's GP asked in turn.
 
-A planner asks the model about ``P`` particles at every model step of every plan
-(``GPDynamicsModel.predict``: all outputs in batched products of ``[J, P, m]``). The
-baseline, in the same process, asks each output's :class:`~geoq.gp.SparseOnlineGP`
-for its mean and std in turn, as a model without the stacked weights would. Sizes:
+A planner asks the model about ``P`` particles at every model step of every plan:
+``GPDynamicsModel.predict_mean`` (one compiled loop over every output's basis) and,
+with the std, ``GPDynamicsModel.predict``. The baseline, in the same process, asks
+each output's :class:`~geoq.gp.SparseOnlineGP` in turn, without and with the std. Sizes:
 InvertedPendulum's (4 states, 1 action: 6 outputs) and Reacher's (10 + 2: 12), on
 2,000 transitions of smooth random dynamics, 200 basis vectors per output, 64
 particles (the planner's default samples).
@@ -36,18 +36,23 @@ def _seconds(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
 
 def main(quick: bool = False) -> None:
     n, max_bv, particles, repeats = (200, 30, 16, 3) if quick else (2000, 200, 64, 50)
-    print(f"{'task sizes':<22} {'batched':>10} {'per output':>11} {'ratio':>7}")
+    print(f"{'task sizes':<22} {'what':<11} {'model':>9} {'per output':>11} {'ratio':>7}")
     for name, d_s, d_a in (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2)):
         model = _model(d_s, d_a, n, max_bv)
         rng = np.random.default_rng(1)
         S, A = rng.normal(size=(particles, d_s)), rng.uniform(-1, 1, size=(particles, d_a))
         X = (np.hstack([S, A]) - model.x_mean) / model.x_scale
-        batched = _seconds(lambda: model.predict(S, A), repeats)  # noqa: B023
-        each = _seconds(
-            lambda: [gp.predict(X, return_std=True) for gp in model.gps if gp is not None],  # noqa: B023
-            repeats,
-        )
-        print(f"{name:<22} {1e3 * batched:>8.2f}ms {1e3 * each:>9.2f}ms {each / batched:>6.1f}x")
+        for what, std in (("means", False), ("means, std", True)):
+            ours = _seconds(
+                (lambda: model.predict(S, A)) if std else (lambda: model.predict_mean(S, A)),  # noqa: B023
+                repeats,
+            )
+            each = _seconds(
+                lambda: [gp.predict(X, return_std=std) for gp in model.gps if gp is not None],  # noqa: B023
+                repeats,
+            )
+            print(f"{name:<22} {what:<11} {1e3 * ours:>7.2f}ms {1e3 * each:>9.2f}ms "
+                  f"{each / ours:>6.1f}x")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -71,7 +71,7 @@ def test_through_a_learned_model_the_first_action_approaches_the_lqr_action() ->
         planner = CEMPlanner(np.array([-10.0]), np.array([10.0]), settings)
 
         def score(U: np.ndarray, s0: np.ndarray = s0) -> np.ndarray:
-            return model_returns(model, s0, U, gamma=1.0, value=_exact_q(P), floor=-1e3,
+            return model_returns(model, s0, U, gamma=1.0, value=_exact_q(P), value_floor=-1e3,
                                  rng=None)  # fmt: skip
 
         a, lqr = planner.plan(score, rng), -(K @ s0)
@@ -90,6 +90,7 @@ class _LinearModel:
 
     obs_dim = 2
     support = _Everywhere()
+    reward_range = np.array([-100.0, 0.0])
 
     def predict(self, S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mean = self.predict_mean(S, A)
@@ -105,11 +106,11 @@ def test_model_returns_through_a_known_model_are_the_exact_returns() -> None:
     rng = np.random.default_rng(2)
     U = rng.uniform(-3.0, 3.0, size=(20, 5, 1))
     s0 = np.array([0.5, -0.5])
-    got = model_returns(_LinearModel(), s0, U, gamma=1.0, value=_exact_q(P), floor=-9.0,
+    got = model_returns(_LinearModel(), s0, U, gamma=1.0, value=_exact_q(P), value_floor=-9.0,
                         rng=rng)  # type: ignore[arg-type]  # fmt: skip
     np.testing.assert_allclose(got, _exact_returns(s0, U, _exact_q(P)), rtol=1e-12)
     discounted = model_returns(_LinearModel(), s0, U[:, :1], gamma=0.5, value=_exact_q(P),
-                               floor=-9.0, rng=None)  # type: ignore[arg-type]  # fmt: skip
+                               value_floor=-9.0, rng=None)  # type: ignore[arg-type]  # fmt: skip
     np.testing.assert_allclose(discounted, _exact_q(P)(np.repeat(s0[None], 20, 0), U[:, 0]))
 
 
@@ -122,7 +123,7 @@ def test_a_predicted_termination_ends_the_return_and_far_from_the_data_it_halts(
     model = GPDynamicsModel(1, 1).fit(S, A, np.ones(300), S2, T, rng)
     push = np.ones((2, 6, 1))
     push[1] = -1.0  # toward 0.5 and away from it
-    got = model_returns(model, np.array([0.35]), push, gamma=1.0, value=None, floor=0.0, rng=None)
+    got = model_returns(model, np.array([0.35]), push, gamma=1.0, value=None, rng=None)
     assert got[0] < 3.0 < got[1]  # ends after about 2 steps; -1 keeps to the data 5 steps
 
     # Driven far past the data the particle halts with the floor.
@@ -130,7 +131,7 @@ def test_a_predicted_termination_ends_the_return_and_far_from_the_data_it_halts(
         return np.full(len(s), 100.0)
 
     away = np.full((1, 40, 1), -1.0)
-    far = model_returns(model, np.array([0.0]), away, gamma=1.0, value=value, floor=-50.0,
+    far = model_returns(model, np.array([0.0]), away, gamma=1.0, value=value, value_floor=-50.0,
                         rng=None)  # fmt: skip
     assert far[0] < 0.0
 

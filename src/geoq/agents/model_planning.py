@@ -7,7 +7,7 @@ transitions are stored and again each time they have doubled (on the most recent
 every other transition streamed into it online.
 Each action, in training and greedy alike, is then the first of the plan
 :class:`~geoq.models.CEMPlanner` finds through the model, halted with the least value
-any return can have where the model does not know (:func:`~geoq.models.model_returns`).
+it could score where the model does not know (:func:`~geoq.models.model_returns`).
 With ``cem-q`` the plans are closed by the agent's own ``Q`` (the posterior mean at the
 plan's last state and action: model-based value expansion, Feinberg et al. 2018;
 TD-MPC's terminal value); with ``cem`` they end at the horizon. Measured, the ``Q``
@@ -85,7 +85,7 @@ class ModelPlanning:
 
         def score(A: FloatArray) -> FloatArray:
             return model_returns(self.model, s[0], A, gamma=agent.config.gamma, value=value,
-                                 floor=lo, rng=rng)  # fmt: skip
+                                 value_floor=lo, rng=rng)  # fmt: skip
 
         return planner.plan(score, rng)[None, :]
 

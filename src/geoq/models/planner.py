@@ -15,8 +15,11 @@ sequence is the one the value is asked about (TD-MPC's terminal ``Q(z_H, pi(z_H)
 Hansen et al. 2022). Where the model has no data, a roll-out halts (MOReL's halt,
 Kidambi et al. 2020): a predicted state farther from every state seen than the data's
 own spacing (:class:`~geoq.models.support.StateSupport`) stops with probability
-``min(distance / spacing - 1, 1)``, and a halted particle gets ``floor``, the least
-value any return can have. The termination output, a GP regression of 0/1 flags, is
+``min(distance / spacing - 1, 1)``, and a halted particle is paid the least reward
+seen (``model.reward_range[0]``) for every model step left, then ``value_floor`` if a
+value closes the plan: the worst the plan could score from there. (The least value
+of a whole discounted return instead, tried first, made ``Reacher-v5``'s plans too
+timid to move the arm.) The termination output, a GP regression of 0/1 flags, is
 read as a classifier at 1/2 (least-squares classification, Rasmussen & Williams 2006,
 §6.5): a predicted termination ends a particle's return after the step's reward.
 Roll-outs follow the model's means, or with ``rng`` draws from its predictive
@@ -158,17 +161,19 @@ def model_returns(
     *,
     gamma: float,
     value: TerminalValue | None,
-    floor: float,
+    value_floor: float = 0.0,
     rng: np.random.Generator | None,
 ) -> FloatArray:
     """Predicted returns ``[P]`` of action sequences ``[P, H + 1, d_a]`` from ``state``
     [d_s] (module docstring). ``rng``: draws of the state changes (None: their means);
-    ``value``: the terminal value (None: 0); ``floor``: a halted particle's value."""
+    ``value``: the terminal value (None: 0) and ``value_floor`` its least."""
     P, H1, _ = actions.shape
     d = model.obs_dim
     S = np.repeat(state[None, :], P, axis=0)
     alive, total = np.ones(P), np.zeros(P)
-    for t in range(H1 - 1):
+    H, r_least = H1 - 1, float(model.reward_range[0])
+    after = gamma**H * value_floor if value is not None else 0.0
+    for t in range(H):
         if rng is None:
             mean = model.predict_mean(S, actions[:, t])
             S = S + mean[:, :d]
@@ -177,8 +182,9 @@ def model_returns(
             S = S + mean[:, :d] + std[:, :d] * rng.standard_normal((P, d))
         ends = mean[:, d + 1] > 0.5
         unknown = np.where(ends, 0.0, np.clip(model.support.distance(S) - 1.0, 0.0, 1.0))
-        total += gamma**t * alive * (mean[:, d] + gamma * unknown * floor)
+        rest = sum(gamma**k for k in range(t + 1, H)) * r_least + after  # halted after step t
+        total += alive * (gamma**t * mean[:, d] + unknown * rest)
         alive = alive * ~ends * (1.0 - unknown)
     if value is not None:
-        total += gamma ** (H1 - 1) * alive * value(S, actions[:, -1])
+        total += gamma**H * alive * value(S, actions[:, -1])
     return total

@@ -72,6 +72,12 @@ def test_save_and_load_continue_identically_model_included(tmp_path) -> None:
     agent.save(tmp_path / "a.npz")
     loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
     assert loaded.planning.model.n_seen == agent.planning.model.n_seen
+    for ours, theirs in ((agent.planning.greedy, loaded.planning.greedy),
+                         (agent.planning.training, loaded.planning.training)):  # fmt: skip
+        for field in ("mean", "elites"):
+            a, b = getattr(ours, field), getattr(theirs, field)
+            assert (a is None and b is None) or np.array_equal(a, b), field
+    assert loaded.planning.greedy.elites is not None
     obs = np.array([-0.3])
     assert np.array_equal(loaded.predict(obs)[0], agent.predict(obs)[0])
     agent.learn(50)
@@ -91,10 +97,13 @@ def test_a_stored_model_must_match_the_config(tmp_path) -> None:
     np.savez(tmp_path / "off.npz", **off)
     with pytest.raises(ArchiveError, match="planner"):
         GPQAgent.load(tmp_path / "off.npz", env=PointToGoal())
-    arrays["model/next_fit"] = np.array(10)
-    np.savez(tmp_path / "bad.npz", **arrays)
-    with pytest.raises(ArchiveError, match="next_fit"):
-        GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())
+    damaged = [("model/next_fit", np.array(10), "next_fit"),
+               ("model/elites_training", np.zeros((8, 3, 1)), "elites_training"),
+               ("model/plan_greedy", np.full((11, 1), 2.0), "plan_greedy")]  # fmt: skip
+    for key, bad, match in damaged:
+        np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
+        with pytest.raises(ArchiveError, match=match):
+            GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())
 
 
 def test_without_a_planner_nothing_is_modelled(tmp_path) -> None:

@@ -38,8 +38,8 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    actions, and the greedy ones where it knows a route to a termination.
 7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`, where
    every discounted return lies (without it regression + max diverged).
-8. **Planning** (``planner="cem"``): actions planned through a learned GP model of
-   the steps, closed by ``Q`` (:mod:`geoq.agents.model_planning`).
+8. **Planning** (``planner="cem"``; ``"cem-q"`` closes the plans with ``Q``): actions
+   planned through a learned GP model of the steps (:mod:`geoq.agents.model_planning`).
 
 ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
 

@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from geoq._io import ArchiveError
 from geoq._typing import FloatArray
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.config import GPQConfig
@@ -94,8 +93,12 @@ class ModelPlanning:
         """The model and schedule as arrays (an agent's archive, prefix ``model/``)."""
         if self.mode == "off":
             return {}
-        plans = {f"plan_{name}": p.mean for name, p in (("training", self.training),
-                 ("greedy", self.greedy)) if p.mean is not None}  # fmt: skip
+        plans = {}
+        for name, planner in (("training", self.training), ("greedy", self.greedy)):
+            if planner.mean is not None:
+                plans[f"plan_{name}"] = planner.mean
+            if planner.elites is not None:
+                plans[f"elites_{name}"] = planner.elites
         return self.model.to_arrays() | plans | {"next_fit": np.array(self.next_fit)}
 
     def restore(self, a: dict[str, Any], source: str) -> None:
@@ -113,10 +116,16 @@ class ModelPlanning:
             raise ValueError(f"next_fit {self.next_fit} does not fit a model fitted={model.fitted}")
         self.model = model
         for name, planner in (("training", self.training), ("greedy", self.greedy)):
-            planner.mean = None
-            if f"plan_{name}" in a:
-                mean = np.asarray(a[f"plan_{name}"], dtype=np.float64)
-                shape = (planner.settings.horizon + 1, planner.low.shape[0])
-                if mean.shape != shape or not np.all(np.abs(mean) <= 1.0):
-                    raise ArchiveError(f"{source}: plan_{name} must be {shape} within [-1, 1]")
-                planner.mean = mean
+            steps = (planner.settings.horizon + 1, len(planner.low))
+            planner.mean = _plan(a, f"plan_{name}", steps)
+            planner.elites = _plan(a, f"elites_{name}", (planner.settings.elites, *steps))
+
+
+def _plan(a: dict[str, Any], key: str, shape: tuple[int, ...]) -> FloatArray | None:
+    """A stored plan (centred actions of ``shape``), or None if there is none."""
+    if key not in a:
+        return None
+    plan = np.asarray(a[key], dtype=np.float64)
+    if plan.shape != shape or not np.all(np.abs(plan) <= 1.0):
+        raise ValueError(f"{key} must be {shape} within [-1, 1], got shape {plan.shape}")
+    return plan

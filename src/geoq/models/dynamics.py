@@ -43,6 +43,7 @@ from geoq._typing import FloatArray
 from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
 from geoq.gp import NumericalWarning, SparseOnlineGP
 from geoq.gp.evidence import fit_squared_exponential
+from geoq.gp.numerics import robust_cholesky
 from geoq.kernels.stationary import SquaredExponential
 from geoq.models._nb_mean import posterior_means
 from geoq.models.support import StateSupport
@@ -99,15 +100,10 @@ def _kernel(gp: SparseOnlineGP) -> SquaredExponential:
 def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
     """``W`` [m, m] with ``W W^T = -C = R^{-1} (I - S) R^{-T}`` (module docstring): ``R^{-1}``
     times a Cholesky factor of the whitened ``I - S`` (PSD: the posterior shrinks every
-    direction), or of its eigenvalues clipped at 0 where rounding made it indefinite."""
-    m = gp.n_bv
+    direction; where rounding says otherwise, the library's one jitter policy,
+    :func:`~geoq.gp.numerics.robust_cholesky`)."""
     _, S = gp.whitened_posterior
-    shrink = np.eye(m) - 0.5 * (S + S.T)
-    try:
-        F = np.linalg.cholesky(shrink)
-    except np.linalg.LinAlgError:
-        lam, U = np.linalg.eigh(shrink)
-        F = U * np.sqrt(np.maximum(lam, 0.0))
+    F, _, _ = robust_cholesky(np.eye(gp.n_bv) - 0.5 * (S + S.T), "a model output's I - S")
     return scipy.linalg.solve_triangular(gp.cholesky_factor, F, lower=False, check_finite=False)
 
 

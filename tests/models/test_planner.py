@@ -168,3 +168,27 @@ def test_a_score_of_the_wrong_shape_is_refused() -> None:
         planner.plan(lambda U: np.zeros(3), np.random.default_rng(0))
     with pytest.raises(ValueError, match="high > low"):
         CEMPlanner(np.array([1.0]), np.array([1.0]))
+
+
+def test_coloured_noise_has_unit_variance_and_is_smoother_than_white() -> None:
+    from geoq.models.planner import _noise
+
+    rng = np.random.default_rng(5)
+    white, red = _noise(rng, (4000, 12, 2), 0.0), _noise(rng, (4000, 12, 2), 2.0)
+    assert np.sqrt(np.mean(red**2)) == pytest.approx(1.0, rel=1e-9)
+    lag1 = np.corrcoef(red[:, 3, 0], red[:, 4, 0])[0, 1]
+    assert lag1 > 0.5 > abs(np.corrcoef(white[:, 3, 0], white[:, 4, 0])[0, 1])
+
+
+def test_act_best_takes_the_best_scored_sequences_first_action() -> None:
+    settings = PlannerSettings(horizon=1, samples=50, iterations=2, elites=5, act_best=True)
+    planner = CEMPlanner(np.array([-1.0]), np.array([1.0]), settings)
+    seen: list[np.ndarray] = []
+
+    def score(U: np.ndarray) -> np.ndarray:
+        seen.append(U.copy())
+        return -np.abs(U[:, 0, 0] - 0.3)
+
+    a = planner.plan(score, np.random.default_rng(6))
+    every = np.concatenate(seen)
+    assert a[0] == every[np.argmin(np.abs(every[:, 0, 0] - 0.3)), 0, 0]

@@ -6,7 +6,7 @@ nearly all of it (issue 13; since issue 31 they run at the paper scale only): th
 ``resistance`` kernel (``K_BV`` re-factorised and the whitened posterior re-anchored
 after every change of the BV set) and the ``pd_novelty`` variant of the geodesic
 kernels (the same, plus an eigendecomposition of the indefinite ``K_BV`` per change).
-Each row here is one cell exactly as ``geoq.experiments.fig3.budget_cell`` runs it
+Each row here is one cell exactly as ``geoq.experiments.paper.fig3.budget_cell`` runs it
 (training roll-outs of seed 0, the seed's evaluation pairs and Monte-Carlo truth,
 ``score_learner``), timed with one BLAS thread; ``x 3 seeds`` is what that cell type
 and budget added to the former quick run's Fig. 3 stage.
@@ -37,9 +37,9 @@ from typing import Any
 import numpy as np
 
 from geoq._threads import one_blas_thread
-from geoq.experiments.config import config_for_scale, variant_learner
-from geoq.experiments.fig3 import TruthCell, refits_per_rollout, score_learner, truth_cell
-from geoq.experiments.seeding import STREAM, rng_for
+from geoq.experiments.paper.config import config_for_scale, variant_learner
+from geoq.experiments.paper.fig3 import TruthCell, refits_per_rollout, score_learner, truth_cell
+from geoq.experiments.paper.seeding import STREAM, rng_for
 from geoq.gp import NumericalWarning
 from geoq.learners import QGPConfig
 from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy

@@ -20,8 +20,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import geoq.experiments.reproduce as reproduce_module
-from geoq.experiments.config import VARIANTS, ReproConfig, config_for_scale
+import geoq.experiments.paper.reproduce as reproduce_module
+from geoq.experiments.paper.config import VARIANTS, ReproConfig, config_for_scale
 from geoq.learners import KERNEL_NAMES, QGPConfig
 
 #: Tiny sizes for ``benchmarks/run.py --quick`` (figures of no meaning).

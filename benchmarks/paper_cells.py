@@ -4,7 +4,7 @@ Not a speed benchmark of ``run.py`` (it needs a finished run): the measurement b
 design notes' section on resyncs that find the factor unchanged. It reads the tuned
 settings and the ground truth of a run of ``geoq reproduce --scale paper`` (``OUT/tuning.json``,
 ``OUT/cells/truth``), runs the named cells of one seed with
-:func:`geoq.experiments.fig3.budget_cell` in this process, one after the other, and prints
+:func:`geoq.experiments.paper.fig3.budget_cell` in this process, one after the other, and prints
 each cell's CPU time and MSEs (so two versions can be compared cell by cell)::
 
     python benchmarks/paper_cells.py OUT SEED VARIANT:KERNEL:BUDGET ... [--profile FILE]
@@ -23,10 +23,10 @@ import sys
 import time
 from pathlib import Path
 
-from geoq.experiments.config import config_for_scale, variant_learner
-from geoq.experiments.fig3 import BudgetCell, TruthCell, budget_cell
+from geoq.experiments.paper.config import config_for_scale, variant_learner
+from geoq.experiments.paper.fig3 import BudgetCell, TruthCell, budget_cell
+from geoq.experiments.paper.tuning import TuningResult
 from geoq.experiments.sweep import cell_spec
-from geoq.experiments.tuning import TuningResult
 from geoq.policies import DEFAULT_POLICY_SIGMA
 
 #: ``--slow``: the cell types that re-anchor at every basis change, at every paper budget.

@@ -2,7 +2,7 @@
 
 Not a speed benchmark (``run.py`` does not run it): the probe behind the design notes'
 section on tasks with more than three inputs. At each checkpoint it runs the greedy
-evaluation of the control benchmark (:func:`geoq.experiments.control_eval.evaluate_agent`,
+evaluation of the control benchmark (:func:`geoq.experiments.control.evaluation.evaluate_agent`,
 reset seeds from 10,000 + seed) and reports, over every greedy step taken:
 
 - ``return``: the mean greedy return;
@@ -38,7 +38,7 @@ import numpy as np
 
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent
-from geoq.experiments.control_eval import evaluate_agent
+from geoq.experiments.control.evaluation import evaluate_agent
 
 
 class _Recorder:

@@ -2,13 +2,12 @@
 
 The end-to-end ``geoq reproduce`` run (files, columns, figures) is tested with
 the experiments; here a *recording stand-in* replaces
-``geoq.experiments.reproduce`` so that the tests check what the CLI passes to
+``geoq.experiments.paper.reproduce`` so that the tests check what the CLI passes to
 the library and how it reports failures, independently of the science.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 import signal
 import subprocess
@@ -34,7 +33,7 @@ def _invoke(*args: str) -> Any:
 
 @pytest.fixture
 def recorded(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
-    """Install a stand-in ``geoq.experiments.reproduce`` that records its keyword arguments."""
+    """A stand-in ``geoq.experiments.paper.reproduce`` that records its keyword arguments."""
     calls: list[dict[str, Any]] = []
 
     def reproduce(**kwargs: Any) -> None:
@@ -48,12 +47,9 @@ def recorded(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
             assert callable(handler), "no SIGTERM handler while the command runs"
             handler(signal.SIGTERM, None)
 
-    # The other commands' modules import helpers from the real one: load them first, so the
-    # result does not depend on which tests ran before.
-    importlib.import_module("geoq.experiments.control")
-    module = types.ModuleType("geoq.experiments.reproduce")
+    module = types.ModuleType("geoq.experiments.paper.reproduce")
     module.reproduce = reproduce  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "geoq.experiments.reproduce", module)
+    monkeypatch.setitem(sys.modules, "geoq.experiments.paper.reproduce", module)
     return calls
 
 
@@ -329,7 +325,7 @@ def test_jobs_above_the_core_count_are_capped_with_a_warning(
 
 
 def test_a_custom_scale_label_is_kept_but_another_preset_name_is_refused() -> None:
-    from geoq.experiments.config import config_for_scale, config_with_overrides
+    from geoq.experiments.paper.config import config_for_scale, config_with_overrides
 
     base = config_for_scale("quick")
     assert config_with_overrides(base, {"scale": "tiny", "seeds": 1}).scale == "tiny"

@@ -28,13 +28,14 @@ WIDE = {"COLUMNS": "200", "NO_COLOR": "1"}
 def calls(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     """Stand-ins for the library calls of train, bench-control and suite that record them."""
     made: list[str] = []
-    import geoq.experiments.control as control
+    import geoq.experiments.control.benchmark as control
+    import geoq.experiments.control.training as training
 
-    monkeypatch.setattr(control, "train", lambda *a, **k: made.append("train") or _Agent())
+    monkeypatch.setattr(training, "train", lambda *a, **k: made.append("train") or _Agent())
     monkeypatch.setattr(control, "run_control_benchmark", lambda *a, **k: made.append("bench"))
-    suite = types.ModuleType("geoq.experiments.suite")
+    suite = types.ModuleType("geoq.experiments.suite.run")
     suite.run_suite = lambda *a, **k: made.append("suite") or Path("SUITE.md")  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "geoq.experiments.suite", suite)
+    monkeypatch.setitem(sys.modules, "geoq.experiments.suite.run", suite)
     return made
 
 
@@ -159,14 +160,14 @@ def test_train_options_are_a_usage_error_or_reach_the_library(
             value = str(tmp / "c.json")
         args += [name, value]
     made: list[str] = []
-    import geoq.experiments.control as control
+    import geoq.experiments.control.training as training
 
-    original = control.train
-    control.train = lambda *a, **k: made.append("train") or _Agent()  # type: ignore[assignment]
+    original = training.train
+    training.train = lambda *a, **k: made.append("train") or _Agent()  # type: ignore[assignment]
     try:
         result = _run(*args)
     finally:
-        control.train = original
+        training.train = original
     assert "Traceback" not in result.output
     assert result.exit_code in (0, 2), result.output
     assert (result.exit_code == 0) == (made == ["train"]), result.output
@@ -189,7 +190,7 @@ def test_train_refuses_an_earlier_run_and_overwrite_replaces_it_whole(tmp_path: 
     assert result.exit_code == 0, result.output
     assert not (out / "evaluations.csv").exists()  # the old run's file: not mixed in
     assert json.loads((out / "config.json").read_text())["seed"] == 1
-    from geoq.experiments.control import TRAIN_FILES
+    from geoq.experiments.control.training import TRAIN_FILES
 
     names = {p.name for p in out.iterdir()}
     assert names <= set(TRAIN_FILES) - {"evaluations.csv"}  # nothing else, nothing hidden
@@ -197,7 +198,7 @@ def test_train_refuses_an_earlier_run_and_overwrite_replaces_it_whole(tmp_path: 
 
 
 def test_a_benchmark_of_other_settings_is_refused_without_overwrite(tmp_path: Path) -> None:
-    from geoq.experiments.control import check_benchmark_dir
+    from geoq.experiments.control.benchmark import check_benchmark_dir
 
     out = tmp_path / "b"
     out.mkdir()
@@ -213,13 +214,13 @@ def test_a_benchmark_of_other_settings_is_refused_without_overwrite(tmp_path: Pa
 def test_warnings_are_one_line(
     tmp_path: Path, calls: list[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import geoq.experiments.control as control
+    import geoq.experiments.control.training as training
 
     def warn(*a: Any, **k: Any) -> Any:
         warnings.warn("first line\nsecond line", UserWarning, stacklevel=1)
         return _Agent()
 
-    monkeypatch.setattr(control, "train", warn)
+    monkeypatch.setattr(training, "train", warn)
     with warnings.catch_warnings():
         warnings.simplefilter("always")
         result = _run("train", "--out", str(tmp_path / "o"), "--no-progress")
@@ -281,18 +282,19 @@ def _saved_agent(factory: pytest.TempPathFactory) -> Path:
 
 def _stub_work(mp: pytest.MonkeyPatch, made: list[str]) -> None:
     """Every command's work replaced by a recorder (nothing runs, nothing is written)."""
-    import geoq.experiments.control as control
-    import geoq.experiments.control_suite as control_suite
-    import geoq.experiments.reproduce as reproduce
-    import geoq.experiments.video as video
+    import geoq.experiments.control.benchmark as control
+    import geoq.experiments.control.suite as control_suite
+    import geoq.experiments.control.training as training
+    import geoq.experiments.control.video as video
+    import geoq.experiments.paper.reproduce as reproduce
 
-    mp.setattr(control, "train", lambda *a, **k: made.append("work") or _Agent())
+    mp.setattr(training, "train", lambda *a, **k: made.append("work") or _Agent())
     mp.setattr(control, "run_control_benchmark", lambda *a, **k: made.append("work"))
     mp.setattr(control_suite, "run_control_suite", lambda *a, **k: made.append("work"))
     mp.setattr(reproduce, "reproduce", lambda *a, **k: made.append("work"))
-    suite = types.ModuleType("geoq.experiments.suite")
+    suite = types.ModuleType("geoq.experiments.suite.run")
     suite.run_suite = lambda *a, **k: made.append("work") or Path("SUITE.md")  # type: ignore[attr-defined]
-    mp.setitem(sys.modules, "geoq.experiments.suite", suite)
+    mp.setitem(sys.modules, "geoq.experiments.suite.run", suite)
     result = types.SimpleNamespace(summary=lambda: "summary")
     mp.setattr(control, "evaluate_agent", lambda *a, **k: made.append("work") or result)
     episode = types.SimpleNamespace(frames=[0], fps=1.0, ret=0.0)

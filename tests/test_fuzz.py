@@ -22,7 +22,7 @@ from tests._fuzz import fuzz_settings
 
 from geoq._io import ArchiveError
 from geoq._validation import MAX_MAGNITUDE
-from geoq.experiments.config import config_for_scale, config_with_overrides
+from geoq.experiments.paper.config import config_for_scale, config_with_overrides
 from geoq.gp import NumericalWarning, SparseOnlineGP
 from geoq.kernels import GeodesicKernel, ResistanceKernel, SquaredExponential
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from geoq.experiments.config import ReproConfig
+from geoq.experiments.paper.config import ReproConfig
 from geoq.learners import QGPConfig
 
 TINY = ReproConfig(

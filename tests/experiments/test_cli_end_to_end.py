@@ -16,8 +16,8 @@ from _tiny import TINY
 from typer.testing import CliRunner
 
 from geoq.cli import app
-from geoq.experiments.config import VARIANT_KERNELS
-from geoq.experiments.fig3 import FIG3_COLUMNS
+from geoq.experiments.paper.config import VARIANT_KERNELS
+from geoq.experiments.paper.fig3 import FIG3_COLUMNS
 
 runner = CliRunner()
 

@@ -14,15 +14,13 @@ from typer.testing import CliRunner
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent
 from geoq.cli import app
-from geoq.experiments.control import (
-    Evaluation,
+from geoq.experiments.control.benchmark import (
     HandMadeController,
     control_report,
-    evaluate_agent,
-    evaluation_success,
     run_control_benchmark,
     steps_to_success,
 )
+from geoq.experiments.control.evaluation import Evaluation, evaluate_agent, evaluation_success
 
 RUNNER = CliRunner()
 ENV = "geoq/PendulumSwingUp-v0"

@@ -14,11 +14,11 @@ from scipy import stats
 from typer.testing import CliRunner
 
 import geoq  # noqa: F401  (registers the envs)
-import geoq.experiments.control as control
-import geoq.experiments.control_suite as suite
+import geoq.experiments.control.benchmark as control
+import geoq.experiments.control.suite as suite
 from geoq.cli import app
 from geoq.envs import TWO_ROOMS_ID
-from geoq.experiments.control_suite import (
+from geoq.experiments.control.suite import (
     CONTROL_SUITE,
     ControlGoal,
     control_goal,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import pdist
 
-from geoq.experiments.fig1 import EDGE_COUNT_COLUMNS, edge_counts_by_eps, relink
+from geoq.experiments.paper.fig1 import EDGE_COUNT_COLUMNS, edge_counts_by_eps, relink
 from geoq.learners import QGPConfig
 from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy
 from geoq.rollouts import collect_rollouts

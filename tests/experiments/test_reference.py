@@ -1,15 +1,15 @@
 """The reference test (issue 31): a reduced reproduction against a stored run.
 
 ``data/reference_run.json`` is the summary of a run of ``REFERENCE_CONFIG``
-(``python -m geoq.experiments.reference record RUN_DIR FILE``); it is re-based only with a
+(``python -m geoq.experiments.paper.reference record RUN_DIR FILE``); it is re-based only with a
 written reason in CHANGELOG.md. The run measures which learners rounding decides (its
-rounding probe, :mod:`geoq.experiments.rounding`), and the test holds those as
+rounding probe, :mod:`geoq.experiments.paper.rounding`), and the test holds those as
 sensitive on any machine. ``data/kernels/`` holds the same run summarised on the same
 machine under the AVX2 and SSE kernel settings (``tests/_kernels.py``), and
 ``data/machines/`` two summaries from machines of other kinds (an AVX-512 Sapphire
 Rapids, a machine with OpenBLAS's Haswell kernels; recorded before the probe existed,
 format 1). ``data/reference_quick.json`` is the same summary of ``geoq reproduce --scale
-quick`` (checked by hand: ``python -m geoq.experiments.reference check results/demo
+quick`` (checked by hand: ``python -m geoq.experiments.paper.reference check results/demo
 tests/experiments/data/reference_quick.json``).
 """
 
@@ -21,9 +21,9 @@ from pathlib import Path
 
 import pytest
 
-from geoq.experiments.claims import SENSITIVE
-from geoq.experiments.config import VARIANTS, config_for_scale
-from geoq.experiments.reference import (
+from geoq.experiments.paper.claims import SENSITIVE
+from geoq.experiments.paper.config import VARIANTS, config_for_scale
+from geoq.experiments.paper.reference import (
     HALF_WIDTH_FRACTION,
     REFERENCE_CONFIG,
     REL_TOL,
@@ -33,7 +33,7 @@ from geoq.experiments.reference import (
     compare,
     summarise,
 )
-from geoq.experiments.reproduce import reproduce
+from geoq.experiments.paper.reproduce import reproduce
 from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
 
 DATA = Path(__file__).parent / "data"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from geoq.experiments.report import assess_claims
+from geoq.experiments.paper.report import assess_claims
 from geoq.experiments.stats import mean_interval, paired_difference
 
 
@@ -75,7 +75,7 @@ def test_intervals_match_scipy_t():
 
 
 def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
-    from geoq.experiments.config import SCALES, config_with_overrides
+    from geoq.experiments.paper.config import SCALES, config_with_overrides
 
     cfg = config_with_overrides(SCALES["quick"], {"seeds": 2, "learner": {"tol": 1e-3}})
     assert cfg.seeds == 2 and cfg.learner.tol == 1e-3
@@ -92,7 +92,7 @@ def test_config_overrides_merge_the_learner_and_reject_unknown_fields():
 
 
 def test_variant_learners_change_only_what_they_name():
-    from geoq.experiments.config import RAW_UNITS, variant_learner
+    from geoq.experiments.paper.config import RAW_UNITS, variant_learner
     from geoq.learners import QGPConfig
 
     tuned = QGPConfig(
@@ -111,7 +111,7 @@ def test_variant_learners_change_only_what_they_name():
 
 
 def test_variant_claims_are_undetermined_when_the_variant_diverged():
-    from geoq.experiments.report import _variant_lines
+    from geoq.experiments.paper.report import _variant_lines
 
     budgets = [5, 50]
     mse_euc = dict.fromkeys(budgets, 1.0)
@@ -135,7 +135,7 @@ def test_variant_claims_are_undetermined_when_the_variant_diverged():
 
 
 def test_a_kernel_run_at_part_of_the_grid_is_tested_at_its_own_budgets():
-    from geoq.experiments.report import _table
+    from geoq.experiments.paper.report import _table
 
     grid = [5, 10, 20, 35, 50, 75, 100, 150, 200]  # lowest third: 5, 10, 20
     mse_euc = dict(zip(grid, [4.0, 3.0, 2.0, 1.5, 1.0, 0.8, 0.5, 0.5, 0.5], strict=True))

@@ -10,8 +10,8 @@ import pytest
 from _tiny import TINY
 from matplotlib.figure import Figure
 
-from geoq.experiments.fig3 import FIG3_COLUMNS
-from geoq.experiments.reproduce import reproduce
+from geoq.experiments.paper.fig3 import FIG3_COLUMNS
+from geoq.experiments.paper.reproduce import reproduce
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +91,7 @@ def test_a_copied_results_folder_resumes_without_recomputing(run_dir, tmp_path, 
     """Cell keys hold no absolute path: a moved or copied folder keeps its finished cells."""
     import shutil
 
-    import geoq.experiments.reproduce as repro
+    import geoq.experiments.paper.reproduce as repro
 
     moved = tmp_path / "elsewhere" / "copy"
     shutil.copytree(run_dir, moved)
@@ -111,9 +111,9 @@ def test_a_copied_results_folder_resumes_without_recomputing(run_dir, tmp_path, 
 
 
 def test_plotting_functions_return_figures():
-    from geoq.experiments.fig1 import GraphSnapshot
-    from geoq.experiments.fig2 import ValueMaps
-    from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
+    from geoq.experiments.paper.fig1 import GraphSnapshot
+    from geoq.experiments.paper.fig2 import ValueMaps
+    from geoq.experiments.paper.plotting import plot_budget_curves, plot_graphs, plot_value_maps
 
     snap = GraphSnapshot(
         0.3,
@@ -160,7 +160,7 @@ def test_long_cells_start_first_and_every_cell_is_kept():
     """Issue 31: the re-anchoring learners' cells are dispatched first, largest budget first;
     the rest keep their order (the rows are sorted afterwards, so the files do not change:
     ``test_worker_processes_do_not_change_the_results``)."""
-    from geoq.experiments.fig3 import BudgetCell, longest_first
+    from geoq.experiments.paper.fig3 import BudgetCell, longest_first
 
     def cell(kernel: str, max_bv: int, pd: bool = False, seed: int = 0) -> BudgetCell:
         return BudgetCell(

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from geoq.experiments.claims import SENSITIVE, claim_verdicts
-from geoq.experiments.rounding import (
+from geoq.experiments.paper.claims import SENSITIVE, claim_verdicts
+from geoq.experiments.paper.rounding import (
     PERTURBATION,
     PROBE_SUFFIX,
     RELATIVE_CHANGE,

@@ -9,9 +9,9 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-import geoq.experiments.suite as suite_mod
+import geoq.experiments.suite.run as suite_mod
 from geoq.cli import app
-from geoq.experiments.suite import SUITE_COLUMNS, SUITE_SCALES, SuiteConfig, run_suite
+from geoq.experiments.suite.run import SUITE_COLUMNS, SUITE_SCALES, SuiteConfig, run_suite
 
 TINY = SuiteConfig(
     scale="tiny",

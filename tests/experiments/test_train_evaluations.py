@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from geoq.agents import GPQAgent
 from geoq.cli import app
-from geoq.experiments.control_eval import EVAL_COLUMNS, EvalCallback, evaluate_agent
-from geoq.experiments.plotting import plot_training_with_evaluations
+from geoq.experiments.control.evaluation import EVAL_COLUMNS, EvalCallback, evaluate_agent
+from geoq.experiments.control.plotting import plot_training_with_evaluations
 
 ENV = "geoq/PendulumSwingUp-v0"  # 250-step episodes
 TINY = {"max_bv": 20, "n_candidates": 5, "train_every": 100}

@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from geoq.agents import GPQAgent
 from geoq.cli import app
-from geoq.experiments.control_eval import evaluate_agent
-from geoq.experiments.video import check_renderable, gif_bytes, record_episode
+from geoq.experiments.control.evaluation import evaluate_agent
+from geoq.experiments.control.video import check_renderable, gif_bytes, record_episode
 
 RUNNER = CliRunner()
 

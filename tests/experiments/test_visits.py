@@ -1,4 +1,4 @@
-"""Visitation maps and greedy routes of 2-D tasks (geoq.experiments.visits)."""
+"""Visitation maps and greedy routes of 2-D tasks (geoq.experiments.control.visits)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from tests.agents._tasks import PointToGoal
 
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent
-from geoq.experiments.plotting import plot_visits
-from geoq.experiments.visits import greedy_route, map_extent, visit_map
+from geoq.experiments.control.plotting import plot_visits
+from geoq.experiments.control.visits import greedy_route, map_extent, visit_map
 
 
 def test_counts_are_the_training_states_cell_by_cell() -> None:
@@ -75,7 +75,7 @@ def test_plot_shows_the_visits_and_the_route() -> None:
 
 
 def test_train_writes_visits_only_for_two_dimensional_tasks(tmp_path: Path) -> None:
-    from geoq.experiments.control import train
+    from geoq.experiments.control.training import train
 
     train("geoq/TwoRooms-v0", tmp_path / "rooms", timesteps=60, eval_every=0, max_bv=20)
     assert (tmp_path / "rooms" / "visits.png").stat().st_size > 5_000

@@ -5,20 +5,20 @@ Commands
 ``geoq reproduce --out DIR --scale quick|paper [--jobs N] [--backend loky|dask]
 [--scheduler ADDRESS] [--seed ROOT_SEED] [--config FILE] [--no-progress]``
     Reproduce every figure of the paper into ``DIR`` by calling
-    :func:`geoq.experiments.reproduce.reproduce`; everything it does can be
+    :func:`geoq.experiments.paper.reproduce.reproduce`; everything it does can be
     done from Python with that function.
 ``geoq train --env ID --kernel K --timesteps N --seed S --out DIR [--eval-every N]``
     Learn control with a :class:`geoq.agents.GPQAgent`, with periodic greedy
-    evaluations (:func:`geoq.experiments.control.train`).
+    evaluations (:func:`geoq.experiments.control.training.train`).
 ``geoq evaluate DIR/agent.npz --episodes N [--video FILE.gif]``
     Deterministic evaluation episodes of a saved agent: mean return with its
     95% interval and the success rate; ``--video`` films the first one
-    (:mod:`geoq.experiments.video`).
+    (:mod:`geoq.experiments.control.video`).
 ``geoq bench-control --out DIR [--kernel K ...] [--seeds N] [--timesteps N] ...``
     Kernels x seeds through the resumable sweep runner: CONTROL.md, control.csv
-    and learning curves (:func:`geoq.experiments.control.run_control_benchmark`).
+    and learning curves (:func:`geoq.experiments.control.benchmark.run_control_benchmark`).
 ``geoq suite --out DIR [--tasks ID ...] [--scale quick|full] [--jobs N] ...``
-    Policy evaluation on the task suite (:func:`geoq.experiments.suite.run_suite`):
+    Policy evaluation on the task suite (:func:`geoq.experiments.suite.run.run_suite`):
     the Fig. 3 protocol per task and a SUITE.md; resumable.
 ``geoq version``
     Print the package version (also ``geoq --version``).

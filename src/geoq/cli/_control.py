@@ -75,13 +75,13 @@ def train(
     overwrite: Annotated[bool, OVERWRITE_OPTION] = False,
 ) -> None:
     """Learn to control a task online with a GP Q-function agent (GPQAgent)."""
-    from geoq.experiments.control import TRAIN_FILES
+    from geoq.experiments.control.training import TRAIN_FILES
 
     check_out(out, TRAIN_FILES, overwrite)
     overrides = agent_config(config)
     check_agents(env, [kernel.value], [overrides])
     with reported("train", "nothing was written"):
-        from geoq.experiments.control import train as run_train
+        from geoq.experiments.control.training import train as run_train
 
         agent = run_train(
             env, out, kernel=kernel.value, timesteps=timesteps, seed=seed, progress=progress,
@@ -141,20 +141,20 @@ def evaluate(
             param_hint="'--env'",
         )
     if video is not None:
-        from geoq.experiments.video import check_renderable
+        from geoq.experiments.control.video import check_renderable
 
         try:
             check_renderable(env or agent.env_id)
         except ValueError as exc:
             raise typer.BadParameter(one_line(exc), param_hint="'--video'") from exc
     with reported("evaluate", "nothing was written"):
-        from geoq.experiments.control import evaluate_agent
+        from geoq.experiments.control.evaluation import evaluate_agent
 
         result = evaluate_agent(agent, env, episodes, seed)
     typer.echo(result.summary())
     if video is not None:
         with reported("evaluate", f"{video} was not written"):
-            from geoq.experiments.video import record_episode, write_gif
+            from geoq.experiments.control.video import record_episode, write_gif
 
             episode = record_episode(agent, env, seed)
             write_gif(video, episode.frames, episode.fps)
@@ -206,8 +206,8 @@ def bench_control(
     """Benchmark the agent: steps to success, kernels x exploration x replay x seeds (resumable)."""
     from geoq.agents.acquisition import EXPLORATION_MODES
     from geoq.agents.config import REPLAYS
-    from geoq.experiments.control import check_baselines, check_benchmark_dir
-    from geoq.experiments.sac_baseline import BASELINES
+    from geoq.experiments.control.baselines import BASELINES
+    from geoq.experiments.control.benchmark import check_baselines, check_benchmark_dir
 
     check_scheduler(scheduler, backend)
     check_choices(explorations, EXPLORATION_MODES, "--exploration")
@@ -236,7 +236,7 @@ def bench_control(
         raise typer.BadParameter(text, param_hint="'--out'") from exc
     jobs = capped_jobs(jobs, scheduler)
     with reported("bench-control", "finished cells are kept; rerun to resume"):
-        from geoq.experiments.control import run_control_benchmark
+        from geoq.experiments.control.benchmark import run_control_benchmark
 
         run_control_benchmark(
             out, env_id=env, kernels=names, seeds=seeds, timesteps=timesteps,
@@ -283,9 +283,9 @@ def control_suite(
     overwrite: Annotated[bool, BENCHMARK_OVERWRITE_OPTION] = False,
 ) -> None:
     """The control tasks, each under its protocol and goal: CONTROL_SUITE.md (resumable)."""
-    from geoq.experiments.control import check_baselines
-    from geoq.experiments.control_suite import control_goals, run_control_suite
-    from geoq.experiments.sac_baseline import BASELINES
+    from geoq.experiments.control.baselines import BASELINES
+    from geoq.experiments.control.benchmark import check_baselines
+    from geoq.experiments.control.suite import control_goals, run_control_suite
 
     check_scheduler(scheduler, backend)
     check_choices(baselines, BASELINES, "--baseline")

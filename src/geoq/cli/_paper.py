@@ -145,7 +145,7 @@ def reproduce(
     if config is not None:
         import json
 
-        from geoq.experiments.config import config_for_scale, config_with_overrides
+        from geoq.experiments.paper.config import config_for_scale, config_with_overrides
 
         try:
             overrides = json.loads(config.read_text())
@@ -155,7 +155,7 @@ def reproduce(
             # here (types, ranges, unknown keys at every level), before anything runs.
             raise typer.BadParameter(one_line(exc), param_hint="'--config'") from exc
     with reported("reproduce", "finished cells are kept, rerun the same command to resume"):
-        from geoq.experiments.reproduce import reproduce as run_reproduce
+        from geoq.experiments.paper.reproduce import reproduce as run_reproduce
 
         run_reproduce(**kwargs)
     typer.echo(f"geoq reproduce: done; results in {out}")
@@ -213,7 +213,7 @@ def suite(
             raise typer.BadParameter(one_line(exc), param_hint="'--tasks'") from exc
     jobs = capped_jobs(jobs, scheduler)
     with reported("suite", "finished cells are kept; rerun to resume"):
-        from geoq.experiments.suite import run_suite
+        from geoq.experiments.suite.run import run_suite
 
         path = run_suite(
             out, tasks or None, scale.value, jobs=jobs, backend=backend.value,

@@ -90,7 +90,7 @@ class InputScaling:
 #: and ``sigma_sp = 0.03`` the ``eps = 0.3`` graph is connected (62 nodes, mean
 #: degree 9.4, density 0.15) and the ``eps = 0.5`` one nearly so (4 components,
 #: largest 66%, density 0.08): sparse *and* connected. ``sigma_sp`` itself is
-#: chosen by validation (:mod:`geoq.experiments.tuning`), and Fig. 1 reports the
+#: chosen by validation (:mod:`geoq.experiments.paper.tuning`), and Fig. 1 reports the
 #: degree statistics the chosen value gives.
 PENDULUM_SCALING = InputScaling(
     scale=(2.0, 4.0, 5.0),

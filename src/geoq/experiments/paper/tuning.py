@@ -33,8 +33,8 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq.evaluation.metrics import mse
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
-from geoq.experiments.config import ReproConfig
-from geoq.experiments.seeding import STREAM, rng_for
+from geoq.experiments.paper.config import ReproConfig
+from geoq.experiments.paper.seeding import STREAM, rng_for
 from geoq.gp import NumericalWarning
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.learners import GPQFunction, QGPConfig

@@ -5,7 +5,7 @@
 SAC runs with its default settings (learning rate 3e-4 in SB3 >= 2, buffer
 1e6, batch 256, ``learning_starts = 100``, one gradient step per env step) on
 one torch thread, is evaluated exactly as the GP agent is
-(:func:`geoq.experiments.control_eval.evaluate_agent`), at the same checkpoints.
+(:func:`geoq.experiments.control.evaluation.evaluate_agent`), at the same checkpoints.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from geoq.experiments.control_eval import ControlCell, learn_with_checkpoints
+from geoq.experiments.control.evaluation import ControlCell, learn_with_checkpoints
 
 __all__ = ["BASELINES", "sac_cell"]
 

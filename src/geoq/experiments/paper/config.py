@@ -136,7 +136,7 @@ class ReproConfig:
     (:data:`VARIANTS`; empty: none)."""
     probe_seeds: int = 3
     """Seeds (the first ones) whose Fig. 3 cells also run a rounding probe, which finds the
-    results that rounding decides (:mod:`geoq.experiments.rounding`); 0: none."""
+    results that rounding decides (:mod:`geoq.experiments.paper.rounding`); 0: none."""
     learner: QGPConfig = field(default_factory=QGPConfig)
     """Base learner settings; the kernel, budget and tuned values are filled in per cell."""
 

@@ -1,4 +1,4 @@
-"""The cells of ``geoq suite`` (:mod:`geoq.experiments.suite`): one sweep cell per
+"""The cells of ``geoq suite`` (:mod:`geoq.experiments.suite.run`): one sweep cell per
 hyper-parameter fit, seed's ground truth, learner and value map, each a frozen
 dataclass that identifies its computation (seeds included) and a module-level
 function that computes its row."""
@@ -14,9 +14,9 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq.evaluation.metrics import mse
 from geoq.evaluation.monte_carlo import MCEstimate, mc_q_values, sample_evaluation_pairs
-from geoq.experiments.fig3 import load_truth, score_learner
-from geoq.experiments.seeding import STREAM, rng_for
-from geoq.experiments.tuning import evidence_config, select_by_validation
+from geoq.experiments.paper.fig3 import load_truth, score_learner
+from geoq.experiments.paper.seeding import STREAM, rng_for
+from geoq.experiments.paper.tuning import evidence_config, select_by_validation
 from geoq.gp import NumericalWarning
 from geoq.learners import GPQFunction, QGPConfig
 from geoq.rollouts import Rollout, collect_rollouts
@@ -199,7 +199,7 @@ class BudgetCell:
 
 
 def budget_cell(cell: BudgetCell) -> dict[str, Any]:
-    """Fit and score one learner (:func:`geoq.experiments.fig3.score_learner`)."""
+    """Fit and score one learner (:func:`geoq.experiments.paper.fig3.score_learner`)."""
     task = suite_task(cell.task)
     truth = load_truth(cell.truth_dir, cell.truth)
     internal = np.asarray(truth["states"], dtype=np.float64)

@@ -8,10 +8,10 @@ seed gives the same bytes); what a change must keep is the science. A run is sum
 * one record per Fig. 3 *cell* (learner: ``tuned`` or a variant; kernel; budget; MSE
   column: online, refitted, refitted after every roll-out): the mean over seeds and the
   half-width of its Student-t 95% interval, over the seeds whose posterior did not
-  diverge (MSE not finite or above :data:`~geoq.experiments.report.DIVERGED` x the
+  diverge (MSE not finite or above :data:`~geoq.experiments.paper.report.DIVERGED` x the
   constant predictor's, REPORT.md's definition), and how many diverged;
 * the verdict of every claim, posterior, graph kernel and learner
-  (:func:`~geoq.experiments.claims.claim_verdicts`, REPORT.md's verdicts).
+  (:func:`~geoq.experiments.paper.claims.claim_verdicts`, REPORT.md's verdicts).
 
 :func:`compare` holds a run to a stored summary: the same configuration and cells; in
 every cell the same number of diverged seeds and a mean within :data:`REL_TOL` of the
@@ -20,15 +20,15 @@ whichever is looser; every verdict unchanged. A reference is re-based (recorded 
 only with a written reason in CHANGELOG.md.
 
 Some learners' results are decided by rounding: the same code and seeds give other
-numbers on another CPU (:mod:`geoq.experiments.rounding`; the ``pd_novelty`` learners'
+numbers on another CPU (:mod:`geoq.experiments.paper.rounding`; the ``pd_novelty`` learners'
 chaotic re-anchoring, for one). The run measures which, with its rounding probe; their
 cells carry ``sensitive: true`` and their claims' verdicts read
-:data:`~geoq.experiments.claims.SENSITIVE`. :func:`compare` holds such a cell as
+:data:`~geoq.experiments.paper.claims.SENSITIVE`. :func:`compare` holds such a cell as
 sensitive (the run must find it so too; its mean and divergences are rounding's, not
 compared) and such a verdict as that word, on any machine.
 
-``python -m geoq.experiments.reference record RUN_DIR FILE`` writes a summary;
-``python -m geoq.experiments.reference check RUN_DIR FILE`` compares a run with a summary
+``python -m geoq.experiments.paper.reference record RUN_DIR FILE`` writes a summary;
+``python -m geoq.experiments.paper.reference check RUN_DIR FILE`` compares a run with a summary
 (exit status 1 and one line per difference when they differ).
 """
 
@@ -43,10 +43,10 @@ from pathlib import Path
 from typing import Any
 
 from geoq._io import atomic_write_json
-from geoq.experiments.claims import claim_verdicts
-from geoq.experiments.config import VARIANTS, ReproConfig, config_for_scale
-from geoq.experiments.report import DIVERGED
-from geoq.experiments.rounding import sensitive_learners
+from geoq.experiments.paper.claims import claim_verdicts
+from geoq.experiments.paper.config import VARIANTS, ReproConfig, config_for_scale
+from geoq.experiments.paper.report import DIVERGED
+from geoq.experiments.paper.rounding import sensitive_learners
 from geoq.experiments.stats import mean_interval
 from geoq.learners import KERNEL_NAMES
 

@@ -1,7 +1,7 @@
 """Evaluating control: deterministic episodes, and learning with evaluation checkpoints.
 
-Shared by the GP agent's benchmark (:mod:`geoq.experiments.control`) and the
-baselines (:mod:`geoq.experiments.sac_baseline`), so that every learner is trained
+Shared by the GP agent's benchmark (:mod:`geoq.experiments.control.benchmark`) and the
+baselines (:mod:`geoq.experiments.control.baselines`), so that every learner is trained
 in the same chunks and evaluated the same way.
 
 * :func:`evaluate_agent`: deterministic episodes from the env's default reset,

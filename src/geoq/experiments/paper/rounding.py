@@ -24,7 +24,7 @@ reduced reference run (3 seeds, budgets 10, 50, 100; design notes): every value 
 other learners moved by at most 2.5e-5 of itself, while 28-100% of the values of each
 posterior of ``pd_novelty`` moved by more than 1e-3 (medians 0.06-0.44). The claims'
 verdicts that read a learner decided by rounding are reported as "sensitive to
-rounding" (:mod:`geoq.experiments.claims`), and the reference test holds them as that.
+rounding" (:mod:`geoq.experiments.paper.claims`), and the reference test holds them as that.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""SUITE.md and the suite's value-map figure, from the rows of :mod:`geoq.experiments.suite`.
+"""SUITE.md and the suite's value-map figure, from the rows of :mod:`geoq.experiments.suite.run`.
 
 The first table answers, per task and budget: does a graph kernel beat the
 squared exponential? For each graph kernel the paired difference of MSEs
@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from geoq.experiments.plotting import KERNEL_STYLE
 from geoq.experiments.stats import Interval, log_interval, paired_difference
+from geoq.experiments.style import KERNEL_STYLE
 
 __all__ = ["focus_note", "graph_vs_se", "plot_task_value_map", "render_suite_report"]
 
@@ -278,7 +278,7 @@ def render_suite_report(
 def plot_task_value_map(task_id: str, names: Sequence[str], m: Mapping[str, Any]) -> Figure:
     """Value maps of a task with a 2-D state: Monte-Carlo truth and one panel per kernel.
 
-    ``m`` is a row of :func:`geoq.experiments.suite.map_cell`. The colour scale is the
+    ``m`` is a row of :func:`geoq.experiments.suite.run.map_cell`. The colour scale is the
     truth's; the GP panels show the training states (grey dots). For ``geoq/TwoRooms-v0``
     the wall (``x = 0.5`` outside the door ``0.8 <= y <= 1``) is drawn on every panel.
     """

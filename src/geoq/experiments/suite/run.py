@@ -13,14 +13,14 @@ so the run is parallel and resumable, one file per finished cell)::
 
 * **Hyper-parameters.** Squared exponential: length-scales (one per input),
   prior variance and noise by maximum exact-GP evidence on a subsample of at
-  most 500 training pairs (:func:`geoq.experiments.tuning.evidence_config`);
+  most 500 training pairs (:func:`geoq.experiments.paper.tuning.evidence_config`);
   the prior variance and noise are then shared by every kernel. Graph kernels
   (``nearest``, ``interpolated``, ``resistance``): their own parameters by
   held-out validation MSE against Monte-Carlo ``Q^pi``, after a refit
-  (:func:`geoq.experiments.tuning.select_by_validation`; the same grids as
+  (:func:`geoq.experiments.paper.tuning.select_by_validation`; the same grids as
   ``geoq reproduce``). Tuning data come from the task's own streams, disjoint
   from every seed's.
-* **One cell's protocol** is :func:`geoq.experiments.fig3.score_learner`, the
+* **One cell's protocol** is :func:`geoq.experiments.paper.fig3.score_learner`, the
   same code as ``geoq reproduce``'s Fig. 3: train on the seed's roll-outs of the
   evaluation policy; MSE against Monte-Carlo ``Q^pi`` at pairs drawn from
   held-out roll-outs, normalised variance; online, refitted at the end, and
@@ -42,11 +42,12 @@ import numpy as np
 
 import geoq
 from geoq._io import atomic_write_json, atomic_write_text
-from geoq.experiments.fig3 import FIG3_COLUMNS
-from geoq.experiments.plotting import plot_budget_curves
-from geoq.experiments.reproduce import save_figure, write_csv
-from geoq.experiments.seeding import STREAM
-from geoq.experiments.suite_cells import (
+from geoq.experiments.outputs import save_figure, write_csv
+from geoq.experiments.paper.fig3 import FIG3_COLUMNS
+from geoq.experiments.paper.plotting import plot_budget_curves
+from geoq.experiments.paper.seeding import STREAM
+from geoq.experiments.paper.tuning import TUNING_COLUMNS
+from geoq.experiments.suite.cells import (
     BudgetCell,
     MapCell,
     TruthCell,
@@ -58,13 +59,12 @@ from geoq.experiments.suite_cells import (
     truth_cell,
     tune_cell,
 )
-from geoq.experiments.suite_report import (
+from geoq.experiments.suite.report import (
     focus_note,
     plot_task_value_map,
     render_suite_report,
 )
 from geoq.experiments.sweep import cell_spec, run_sweep
-from geoq.experiments.tuning import TUNING_COLUMNS
 from geoq.learners import KERNEL_NAMES, QGPConfig
 from geoq.tasks.suite import SUITE_TASK_IDS, suite_task
 

@@ -1,16 +1,11 @@
-"""Control experiments: train an agent, evaluate it, benchmark kernels x seeds (data only).
+"""``geoq bench-control``: kernels (and baselines) x seeds on one task, data and report.
 
-* :func:`evaluate_agent` (from :mod:`geoq.experiments.control_eval`, shared with the
-  baselines): deterministic episodes from the env's default reset, run in
-  lockstep so that each step is one batched :meth:`GPQAgent.predict`.
-* :func:`train` (``geoq train``): learn with periodic greedy evaluations, then write
-  ``learning_curve.csv``, ``evaluations.csv``, ``learning_curve.png``, ``agent.npz`` and
-  ``config.json`` atomically.
-* :func:`control_cell` / :func:`run_control_benchmark` (``geoq bench-control``):
-  one sweep cell = one (agent settings, seed); the agent learns for the whole
-  budget and is evaluated at every checkpoint (``eval_every`` steps) with
-  ``eval_episodes`` deterministic episodes; cells go through the resumable
-  sweep runner (joblib locally, Dask on a cluster).
+:func:`control_cell` is one sweep cell = one (agent settings, seed): the agent learns for
+the whole budget and is evaluated at every checkpoint (``eval_every`` steps) with
+``eval_episodes`` deterministic episodes
+(:func:`~geoq.experiments.control.evaluation.evaluate_agent`). :func:`run_control_benchmark`
+runs the cells through the resumable sweep runner (joblib locally, Dask on a cluster) and
+writes ``benchmark.json``, ``control.csv``, ``learning_curves.png`` and ``CONTROL.md``.
 """
 
 from __future__ import annotations
@@ -22,62 +17,39 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
 from scipy import stats
 
-from geoq import __version__
 from geoq._io import atomic_write_json, atomic_write_text, check_run_dir, staged_run
 from geoq.agents import GPQAgent
 from geoq.envs import PENDULUM_SWING_UP_ID
-from geoq.experiments.control_eval import (
-    EVAL_COLUMNS,
+from geoq.experiments.control.baselines import BASELINES, sac_cell
+from geoq.experiments.control.evaluation import (
     ControlCell,
-    EvalCallback,
     Evaluation,
     evaluate_agent,
-    evaluation_success,
     learn_with_checkpoints,
 )
-from geoq.experiments.plotting import (
-    plot_learning_curve,
-    plot_training_with_evaluations,
-    plot_visits,
-)
-from geoq.experiments.reproduce import save_figure, write_csv
-from geoq.experiments.sac_baseline import BASELINES, sac_cell
+from geoq.experiments.control.plotting import plot_learning_curve
+from geoq.experiments.outputs import save_figure, write_csv
 from geoq.experiments.stats import mean_interval
 from geoq.experiments.sweep import run_sweep
-from geoq.experiments.visits import visit_map
 from geoq.policies import default_policy
 from geoq.tasks import KNOWN_TASKS
 
 __all__ = [
     "BENCHMARK_FILES",
-    "TRAIN_FILES",
-    "ControlCell",
-    "Evaluation",
     "HandMadeController",
     "benchmark_settings",
     "check_baselines",
     "check_benchmark_dir",
     "control_cell",
     "control_report",
-    "evaluate_agent",
-    "evaluation_success",
     "median_interval",
     "run_control_benchmark",
     "steps_to_success",
-    "train",
 ]
 
-#: Columns of ``learning_curve.csv``.
-CURVE_COLUMNS = ("timesteps", "episode", "return", "success")
-#: The files of a ``geoq train`` run (written together; an earlier run is replaced whole).
-TRAIN_FILES = (
-    "learning_curve.csv", "evaluations.csv", "learning_curve.png", "visits.png", "agent.npz",
-    "config.json",
-)  # fmt: skip
 #: The report of a ``geoq bench-control`` run (its finished cells live in ``cells/``).
 BENCHMARK_FILES = ("benchmark.json", "control.csv", "learning_curves.png", "CONTROL.md")
 
@@ -90,76 +62,6 @@ class HandMadeController:
 
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[np.ndarray, None]:
         return default_policy().mean_action(observation)[:, None], None
-
-
-def _curve_rows(agent: GPQAgent) -> list[dict[str, Any]]:
-    return [
-        {"timesteps": e.timesteps, "episode": e.episode, "return": e.ret,
-         "success": "" if math.isnan(e.success) else int(e.success)}
-        for e in agent.episodes
-    ]  # fmt: skip
-
-
-def train(
-    env_id: str,
-    out: str | Path,
-    *,
-    kernel: str = "euclidean",
-    timesteps: int = 2_000,
-    seed: int = 0,
-    progress: bool = False,
-    eval_every: int = 250,
-    eval_episodes: int = 10,
-    overwrite: bool = False,
-    **config: Any,
-) -> GPQAgent:
-    """Learn with a fresh :class:`GPQAgent` and write its outputs into ``out``.
-
-    Every ``eval_every`` steps (at the end of the episode that reaches them) and after
-    the last step, ``eval_episodes`` greedy episodes (:class:`EvalCallback`, resets
-    from ``10_000 + seed`` as in the benchmark); ``eval_every=0``: none. They do not
-    change what the agent learns.
-
-    Writes ``learning_curve.csv`` (``timesteps, episode, return, success`` per
-    training episode), ``evaluations.csv`` (:data:`EVAL_COLUMNS` per evaluation),
-    ``learning_curve.png`` (both curves), for a task with a 2-D observation ``visits.png``
-    (the training states' visitation map and one greedy route from the reset of seed
-    ``10_000 + seed``: :mod:`geoq.experiments.visits`), ``agent.npz`` and ``config.json``
-    (:data:`TRAIN_FILES`), together (:func:`geoq._io.staged_run`): a failure writes
-    nothing. ``out`` must not hold an earlier run unless ``overwrite`` (then that run is
-    replaced whole); this, and that ``out`` can be written, is checked before learning.
-    Returns the agent.
-    """
-
-    out = Path(out)
-    check_run_dir(out, TRAIN_FILES, overwrite)
-    agent = GPQAgent(env_id, kernel=kernel, seed=seed, **config)  # type: ignore[arg-type]
-    evals = EvalCallback(agent, eval_every, eval_episodes, 10_000 + seed) if eval_every else None
-    agent.learn(timesteps, progress_bar=progress, callback=evals)
-    if evals is not None:
-        evals.finish()
-    rows = _curve_rows(agent)
-    ts = np.array([r["timesteps"] for r in rows], dtype=np.float64)
-    rets = np.array([r["return"] for r in rows], dtype=np.float64)
-    with staged_run(out, TRAIN_FILES, overwrite=overwrite) as staging:
-        write_csv(staging / "learning_curve.csv", rows, CURVE_COLUMNS)
-        if evals is not None:
-            write_csv(staging / "evaluations.csv", evals.rows, EVAL_COLUMNS)
-            figure = plot_training_with_evaluations(ts, rets, evals.rows, env_id)
-        else:
-            figure = plot_learning_curve({kernel: (ts[None, :], rets[None, :])}, env_id)
-        save_figure(figure, staging / "learning_curve.png")
-        visits = visit_map(agent, gymnasium.make(env_id), 10_000 + seed)
-        if visits is not None:
-            save_figure(plot_visits(visits, env_id), staging / "visits.png")
-        agent.save(staging / "agent.npz")
-        atomic_write_json(
-            staging / "config.json",
-            {"env": env_id, "seed": seed, "timesteps": timesteps, "geoq_version": __version__,
-             "eval_every": eval_every, "eval_episodes": eval_episodes,
-             "agent": agent.config.as_dict(), "scaling": agent.scaling.as_dict()},
-        )  # fmt: skip
-    return agent
 
 
 def check_baselines(baselines: Sequence[str]) -> None:
@@ -224,7 +126,7 @@ def control_cell(cell: ControlCell) -> dict[str, Any]:
     """Learn for ``cell.timesteps`` steps, evaluating every ``cell.eval_every`` steps.
 
     ``cell.kernel`` may also name a baseline (``"sac"``,
-    :mod:`geoq.experiments.sac_baseline`), trained and evaluated the same way.
+    :mod:`geoq.experiments.control.baselines`), trained and evaluated the same way.
 
     Returns a row with the checkpoints, the evaluation's mean return and
     success rate at each, the training curve and the wall time of learning.

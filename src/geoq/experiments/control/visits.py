@@ -1,7 +1,7 @@
 """Where an agent went: a visitation map of its training states and one greedy route.
 
 For tasks whose observation has two dimensions (``geoq/TwoRooms-v0``, the swing-up,
-``MountainCarContinuous-v0``); :func:`geoq.experiments.plotting.plot_visits` draws
+``MountainCarContinuous-v0``); :func:`geoq.experiments.control.plotting.plot_visits` draws
 them, ``geoq train`` writes the picture as ``visits.png``. The map's extent is the
 observation space's bounds where they are finite, else the range of the states seen.
 """

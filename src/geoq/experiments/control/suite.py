@@ -1,7 +1,7 @@
 """``geoq control-suite``: the control tasks, each under its own protocol and goal.
 
-The suite's second part (SPEC §8; the first is the Fig. 3 protocol of
-:mod:`geoq.experiments.suite`). Every task runs :func:`run_control_benchmark` with
+The suite's second part (the first is the Fig. 3 protocol of
+:mod:`geoq.experiments.suite.run`). Every task runs :func:`run_control_benchmark` with
 the agent's defaults (and optionally SAC beside it, same seeds, budgets and
 evaluation) into ``out/<task>/``, then its goal is checked:
 
@@ -16,7 +16,7 @@ InvertedPendulum-v5            5        5,000  500    median final return >= 950
 Reacher-v5                     5        5,000  500    median final return >= -5
 =============================  =======  =====  =====  ======================================
 
-Success is :func:`~geoq.experiments.control_eval.evaluation_success` (a success
+Success is :func:`~geoq.experiments.control.evaluation.evaluation_success` (a success
 rate >= 0.9 of the greedy episodes, or a mean return >= the task's known
 threshold); "final return" is the mean greedy return of the last checkpoint.
 The first three goals keep what the agent learns today (the README's table, same
@@ -44,7 +44,8 @@ import numpy as np
 
 from geoq._io import atomic_write_json, atomic_write_text, check_run_dir
 from geoq.envs import PENDULUM_SWING_UP_ID, TWO_ROOMS_ID
-from geoq.experiments.control import (
+from geoq.experiments.control.baselines import BASELINES
+from geoq.experiments.control.benchmark import (
     benchmark_settings,
     check_baselines,
     check_benchmark_dir,
@@ -52,7 +53,6 @@ from geoq.experiments.control import (
     run_control_benchmark,
     steps_to_success,
 )
-from geoq.experiments.sac_baseline import BASELINES
 
 __all__ = [
     "CONTROL_SUITE",
@@ -274,7 +274,7 @@ def control_suite_report(results: Sequence[Mapping[str, Any]], baselines: Sequen
     lines = [
         "# Control suite",
         "",
-        "Each task under its own protocol (`geoq.experiments.control_suite`; its benchmark in "
+        "Each task under its own protocol (`geoq.experiments.control.suite`; its benchmark in "
         "the task's directory): the agent's defaults, greedy evaluation episodes from the "
         "default reset at every checkpoint. Steps to success and final returns: median over "
         "seeds with a distribution-free 95% interval (unbounded, [-inf, inf], for a median "

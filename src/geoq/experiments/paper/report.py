@@ -1,7 +1,7 @@
 """REPORT.md: what the reproduction found, claim by claim, with intervals over seeds.
 
 The claims' tests and verdicts (paired differences by seed, Student-t 95% intervals)
-live in :mod:`geoq.experiments.claims`; they stay importable from here.
+live in :mod:`geoq.experiments.paper.claims`; they stay importable from here.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from geoq.experiments.claims import (
+from geoq.experiments.paper.claims import (
     GRAPH_KERNELS,
     POSTERIOR_COLUMNS,
     SENSITIVE,
@@ -20,10 +20,10 @@ from geoq.experiments.claims import (
     assess_claims,
     claim_verdicts,
 )
-from geoq.experiments.config import VARIANT_KERNELS, VARIANTS
-from geoq.experiments.fig1 import GraphSnapshot
-from geoq.experiments.fig2 import ValueMaps
-from geoq.experiments.rounding import PERTURBATION, RELATIVE_CHANGE, probe_summary
+from geoq.experiments.paper.config import VARIANT_KERNELS, VARIANTS
+from geoq.experiments.paper.fig1 import GraphSnapshot
+from geoq.experiments.paper.fig2 import ValueMaps
+from geoq.experiments.paper.rounding import PERTURBATION, RELATIVE_CHANGE, probe_summary
 from geoq.experiments.stats import log_interval, mean_interval, paired_difference
 
 __all__ = [

@@ -21,7 +21,7 @@ import gymnasium
 import numpy as np
 
 from geoq._io import atomic_write_bytes
-from geoq.experiments.control_eval import Actor
+from geoq.experiments.control.evaluation import Actor
 
 __all__ = ["RecordedEpisode", "check_renderable", "gif_bytes", "record_episode", "write_gif"]
 
@@ -82,7 +82,7 @@ def record_episode(agent: Actor, env_id: str | None = None, seed: int = 0) -> Re
     """One deterministic (greedy) episode of ``agent`` with a frame per state.
 
     The episode starts from the reset of episode 0 of
-    :func:`~geoq.experiments.control_eval.evaluate_agent` with the same ``seed``, so its
+    :func:`~geoq.experiments.control.evaluation.evaluate_agent` with the same ``seed``, so its
     return is that episode's.
     """
     env_id = env_id or agent.env_id

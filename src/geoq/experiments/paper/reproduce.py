@@ -17,32 +17,27 @@ with identical files.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import os
 import platform
 import time
 import warnings
-from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
-
-from matplotlib.figure import Figure
 
 import geoq
-from geoq._io import atomic_write_bytes, atomic_write_json, atomic_write_text
-from geoq.experiments.config import (
+from geoq._io import atomic_write_json, atomic_write_text
+from geoq.experiments.outputs import save_figure, write_csv
+from geoq.experiments.paper.config import (
     VARIANT_KERNELS,
     VARIANTS,
     ReproConfig,
     config_for_scale,
     variant_learner,
 )
-from geoq.experiments.fig1 import EDGE_COUNT_COLUMNS, build_graphs, edge_counts_by_eps
-from geoq.experiments.fig2 import value_maps
-from geoq.experiments.fig3 import (
+from geoq.experiments.paper.fig1 import EDGE_COUNT_COLUMNS, build_graphs, edge_counts_by_eps
+from geoq.experiments.paper.fig2 import value_maps
+from geoq.experiments.paper.fig3 import (
     FIG3_COLUMNS,
     VARIANT_COLUMNS,
     BudgetCell,
@@ -51,37 +46,18 @@ from geoq.experiments.fig3 import (
     longest_first,
     truth_cell,
 )
-from geoq.experiments.plotting import plot_budget_curves, plot_graphs, plot_value_maps
-from geoq.experiments.report import render_report
-from geoq.experiments.rounding import attach_probes
-from geoq.experiments.seeding import STREAM, rng_for
+from geoq.experiments.paper.plotting import plot_budget_curves, plot_graphs, plot_value_maps
+from geoq.experiments.paper.report import render_report
+from geoq.experiments.paper.rounding import attach_probes
+from geoq.experiments.paper.seeding import STREAM, rng_for
+from geoq.experiments.paper.tuning import TUNING_COLUMNS, TuningResult, tune
 from geoq.experiments.sweep import cap_jobs, cell_spec, run_sweep
-from geoq.experiments.tuning import TUNING_COLUMNS, TuningResult, tune
 from geoq.gp import NumericalWarning
 from geoq.learners import KERNEL_NAMES, PAPER_KERNELS
 from geoq.policies import DEFAULT_POLICY_SIGMA, default_policy
 from geoq.rollouts import collect_rollouts
 
-__all__ = ["reproduce", "save_figure", "write_csv"]
-
-
-def write_csv(
-    path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[str] | None = None
-) -> None:
-    """Write tidy rows as CSV, atomically."""
-    cols = list(columns) if columns is not None else list(rows[0]) if rows else []
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write_text(path, buffer.getvalue())
-
-
-def save_figure(fig: Figure, path: Path) -> None:
-    """Render a figure to PNG, atomically (fixed metadata: same data, same bytes)."""
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=120, metadata={"Software": None})
-    atomic_write_bytes(path, buffer.getvalue())
+__all__ = ["reproduce"]
 
 
 def _tuning(out: Path, cfg: ReproConfig, policy_sigma: float, jobs: int = 1) -> TuningResult:
@@ -116,7 +92,7 @@ def reproduce(
     Parameters
     ----------
     out : output directory (created; reused to resume).
-    scale : ``"quick"`` or ``"paper"`` (see :mod:`geoq.experiments.config`).
+    scale : ``"quick"`` or ``"paper"`` (see :mod:`geoq.experiments.paper.config`).
     jobs, backend, scheduler : how the sweeps run (:func:`geoq.experiments.sweep.run_sweep`).
     root_seed : overrides the preset's root seed.
     config : a full configuration instead of a preset (tests use tiny ones).

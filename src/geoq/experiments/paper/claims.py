@@ -13,11 +13,11 @@ the same evaluation pairs), with Student-t 95% intervals over seeds:
 4. *a band where it is worse*: budgets where ``MSE_geo - MSE_euc > 0``.
 
 A verdict that reads a learner whose results rounding decides (the graph kernel's or
-the baseline's; :mod:`geoq.experiments.rounding`) is :data:`SENSITIVE`: the same code
+the baseline's; :mod:`geoq.experiments.paper.rounding`) is :data:`SENSITIVE`: the same code
 and seeds give another verdict on another CPU.
 
-REPORT.md (:mod:`geoq.experiments.report`) renders them; the reference test of the
-reproduction (:mod:`geoq.experiments.reference`) compares them with a stored run.
+REPORT.md (:mod:`geoq.experiments.paper.report`) renders them; the reference test of the
+reproduction (:mod:`geoq.experiments.paper.reference`) compares them with a stored run.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from geoq.experiments.config import VARIANTS
-from geoq.experiments.rounding import sensitive_learners
+from geoq.experiments.paper.config import VARIANTS
+from geoq.experiments.paper.rounding import sensitive_learners
 from geoq.experiments.stats import Interval, paired_difference
 
 __all__ = [

@@ -28,9 +28,9 @@ from geoq._typing import FloatArray
 from geoq.baselines.tabular_td import td_baseline
 from geoq.evaluation.metrics import mse, normalized_variance
 from geoq.evaluation.monte_carlo import mc_q_values, sample_evaluation_pairs
-from geoq.experiments.config import ReproConfig
-from geoq.experiments.rounding import POSTERIOR_OF, PROBE_SUFFIX, perturb
-from geoq.experiments.seeding import STREAM, rng_for
+from geoq.experiments.paper.config import ReproConfig
+from geoq.experiments.paper.rounding import POSTERIOR_OF, PROBE_SUFFIX, perturb
+from geoq.experiments.paper.seeding import STREAM, rng_for
 from geoq.experiments.sweep import cell_key, cell_spec, load_cell
 from geoq.gp import NumericalWarning
 from geoq.learners import PAPER_KERNELS, GPQFunction, QGPConfig
@@ -68,7 +68,7 @@ FIG3_COLUMNS = (
     "variance_clipped",
     "eig_clips",
     "q_resyncs",
-    # The rounding probe's values (geoq.experiments.rounding; empty where not probed).
+    # The rounding probe's values (geoq.experiments.paper.rounding; empty where not probed).
     *(column + PROBE_SUFFIX for column in POSTERIOR_OF),
 )
 #: Column order of ``fig3_variants.csv`` (learners run beside the tuned ones).
@@ -153,10 +153,10 @@ class BudgetCell:
     """Where the truth cells are (not part of the cell's identity: folders are relocatable)."""
     truth: dict[str, Any]
     variant: str = "tuned"
-    """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.config.VARIANTS`."""
+    """``"tuned"`` (Fig. 3 proper) or a key of :data:`geoq.experiments.paper.config.VARIANTS`."""
     probe: bool = False
     """Whether this is the cell's rounding probe: the same learner on training data
-    perturbed at rounding level (:mod:`geoq.experiments.rounding`)."""
+    perturbed at rounding level (:mod:`geoq.experiments.paper.rounding`)."""
 
 
 def refits_per_rollout(kernel: str, variant: str) -> bool:

@@ -4,18 +4,22 @@ maximum exact-GP evidence (:func:`geoq.gp.evidence.fit_squared_exponential`)."""
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from geoq._typing import FloatArray
+from geoq.agents.buffer import TransitionBuffer
+from geoq.agents.config import GPQConfig
+from geoq.agents.state import LearningState, TrainingLog
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.gp.numerics import NumericalWarning
+from geoq.learners.scaling import InputScaling
 
-if TYPE_CHECKING:
-    from geoq.agents.gpq import GPQAgent
-
-__all__ = ["EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "fit_lengthscales", "refit_lengthscales"]
+__all__ = [
+    "EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "EvidenceAgent", "fit_lengthscales",
+    "refit_lengthscales",
+]  # fmt: skip
 
 #: Points of each fit (O(n^3) per evaluation) and its random restarts beyond the warm
 #: start (the length-scales in use).
@@ -47,7 +51,23 @@ def fit_lengthscales(
     return ls, record
 
 
-def refit_lengthscales(agent: GPQAgent) -> None:
+class EvidenceAgent(Protocol):
+    """What a refit reads of the agent (a :class:`~geoq.agents.GPQAgent`), and the two
+    steps it asks of it: the length-scales in use, and rebuilding its GP with new ones."""
+
+    config: GPQConfig
+    state: LearningState
+    buffer: TransitionBuffer
+    scaling: InputScaling
+    rng: np.random.Generator
+    log: TrainingLog
+
+    def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
+    def _lengthscale(self) -> float | tuple[float, ...]: ...
+    def _restream(self) -> None: ...
+
+
+def refit_lengthscales(agent: EvidenceAgent) -> None:
     """``hyperparameters="evidence"``: ``agent``'s length-scales fitted to its window's
     inputs and standardised targets (:func:`fit_lengthscales`, warm-started from those in
     use); its GP is rebuilt with them, the fit recorded in its log."""

@@ -7,22 +7,34 @@ the value iterations of the explore, exploit and cautious greedy plans.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from geoq._typing import FloatArray, IntArray
+from geoq.agents.map_settings import MapSettings
 
-if TYPE_CHECKING:
-    from geoq.agents.state_map import StateMap
+__all__ = ["LeafModel", "MapTransitions"]
 
-__all__ = ["LeafModel"]
+
+class MapTransitions(Protocol):
+    """What the backups read of the map (a :class:`~geoq.agents.state_map.StateMap`): its
+    transitions ``[N]`` (leaves of ``s`` and ``s'``, candidate, reward, termination), the
+    discount and the value iterations' settings."""
+
+    gamma: float
+    settings: MapSettings
+    leaf_s: IntArray
+    leaf_s2: IntArray
+    k: IntArray
+    r: FloatArray
+    done: np.ndarray
 
 
 class LeafModel:
     """The map's MDP over leaves for one planning round: Bellman backups of both plans."""
 
-    def __init__(self, m: StateMap, use: np.ndarray, idx: IntArray, tried: IntArray,
+    def __init__(self, m: MapTransitions, use: np.ndarray, idx: IntArray, tried: IntArray,
                  target: IntArray, r_hat: FloatArray, d_hat: FloatArray,
                  n_steps: FloatArray, blocked: np.ndarray) -> None:  # fmt: skip
         self.m, self.use, self.idx, self.tried = m, use, idx, tried

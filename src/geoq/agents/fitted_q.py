@@ -56,11 +56,10 @@ from geoq.agents._candidates import (
     SeparableCandidates,
 )
 from geoq.agents._covariance_cache import NextStateCovariances, separable_factors
-from geoq.agents.buffer import Transitions
 from geoq.agents.config import GPQConfig
+from geoq.agents.phase_inputs import PhaseInputs
 from geoq.agents.replay import ReplayStrategy
-from geoq.gp import ProjectedSystem, SparseOnlineGP
-from geoq.learners.scaling import InputScaling
+from geoq.gp import ProjectedSystem
 
 __all__ = [
     "CandidateCovariances",
@@ -238,42 +237,6 @@ def standardisation(y: FloatArray, bounds: tuple[float, float], prior: str) -> t
         return float(np.mean(y)), max(float(np.std(y)), floor)
     half = max(0.5 * (hi - lo), floor)
     return (hi if prior == "optimistic" else 0.5 * (lo + hi)), half
-
-
-@dataclass(frozen=True)
-class PhaseInputs:
-    """What a fitted-Q phase reads of the agent (one record per phase).
-
-    Attributes
-    ----------
-    gp : the agent's GP (the phase refits it).
-    stored : the window's transitions (``N``), oldest first.
-    targets : their last targets ``[N]``, clipped to ``bounds`` (the warm start).
-    n_seen : transitions stored in all (the window's first is number ``n_seen - N``).
-    scaling, candidates, obs_dim : the agent's input scaling, candidate actions
-        ``[K, d_a]`` and observation size.
-    lengthscale : the squared exponential's length-scale per input ``[d]`` (graph units).
-    obs_low, obs_high : the observation space's bounds ``[d_s]`` (None: not a Box).
-    y_mean, y_scale, bounds : the standardisation in use and the value bounds.
-    """
-
-    gp: SparseOnlineGP
-    stored: Transitions
-    targets: FloatArray
-    n_seen: int
-    scaling: InputScaling
-    candidates: FloatArray
-    obs_dim: int
-    lengthscale: FloatArray
-    obs_low: FloatArray | None
-    obs_high: FloatArray | None
-    y_mean: float
-    y_scale: float
-    bounds: tuple[float, float]
-
-    def inputs(self, data: Transitions) -> FloatArray:
-        """Scaled GP inputs ``[n, d]`` of ``data``'s state-action pairs."""
-        return self.scaling.transform(np.hstack([data.states, data.actions]))
 
 
 @dataclass(frozen=True)

@@ -22,19 +22,33 @@ warm start: they change nothing the learning reads.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from geoq._typing import FloatArray
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.config import GPQConfig
+from geoq.agents.state import LearningState
+from geoq.gp import SparseOnlineGP
 from geoq.models import CEMPlanner, GPDynamicsModel, PlannerSettings, model_returns
 
-if TYPE_CHECKING:
-    from geoq.agents.gpq import GPQAgent
+__all__ = ["ModelPlanning", "PlanningAgent"]
 
-__all__ = ["ModelPlanning"]
+
+class PlanningAgent(Protocol):
+    """What a plan reads of the agent (a :class:`~geoq.agents.GPQAgent`): its seed and
+    step (a greedy plan's generator), its settings, and its Q (``cem-q``'s closing value)."""
+
+    seed: int | None
+    config: GPQConfig
+    state: LearningState
+    gp: SparseOnlineGP
+
+    @property
+    def num_timesteps(self) -> int: ...
+    def value_bounds(self) -> tuple[float, float]: ...
+    def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
 
 
 class ModelPlanning:
@@ -68,7 +82,9 @@ class ModelPlanning:
         """A new episode: the training plan's warm start is forgotten."""
         self.training.reset()
 
-    def action(self, agent: GPQAgent, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
+    def action(
+        self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None
+    ) -> FloatArray:
         """The planned action ``[1, d_a]`` at ``s`` [1, d_s]; ``rng`` None: a greedy plan."""
         planner = self.training if rng is not None else self.greedy
         if rng is None:

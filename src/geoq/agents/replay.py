@@ -10,18 +10,26 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from geoq._typing import FloatArray
 from geoq.agents.buffer import Transitions
 from geoq.agents.graph_replay import GraphModel, imagine_transitions
+from geoq.agents.phase_inputs import PhaseInputs
 
-if TYPE_CHECKING:
-    from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
+__all__ = [
+    "GraphReplay", "NextQ", "NoReplay", "ReplayStrategy", "UniformReplay", "replay_strategy",
+]  # fmt: skip
 
-__all__ = ["GraphReplay", "NoReplay", "ReplayStrategy", "UniformReplay", "replay_strategy"]
+
+class NextQ(Protocol):
+    """What a strategy asks of the phase (a :class:`~geoq.agents.fitted_q.FittedQPhase`)."""
+
+    def stored_next_q(self, inp: PhaseInputs) -> FloatArray:
+        """Posterior mean of ``Q`` ``[N, K]`` at the stored next states x candidates."""
+        ...
 
 
 class ReplayStrategy(Protocol):
@@ -30,9 +38,7 @@ class ReplayStrategy(Protocol):
     sweeps: bool
     """Whether the phase re-bootstraps the targets (fitted-Q sweeps)."""
 
-    def extend(
-        self, phase: FittedQPhase, inp: PhaseInputs
-    ) -> tuple[Transitions, FloatArray, int | None]:
+    def extend(self, phase: NextQ, inp: PhaseInputs) -> tuple[Transitions, FloatArray, int | None]:
         """The transitions of the phase and their starting targets (the stored ones first),
         and the number of imagined ones (None: this strategy imagines none)."""
         ...
@@ -43,9 +49,7 @@ class NoReplay:
 
     sweeps = False
 
-    def extend(
-        self, phase: FittedQPhase, inp: PhaseInputs
-    ) -> tuple[Transitions, FloatArray, int | None]:
+    def extend(self, phase: NextQ, inp: PhaseInputs) -> tuple[Transitions, FloatArray, int | None]:
         return inp.stored, inp.targets, None
 
 
@@ -68,9 +72,7 @@ class GraphReplay:
     def __init__(self, gamma: float, budget: int, eps: float) -> None:
         self.gamma, self.budget, self.eps = gamma, budget, eps
 
-    def extend(
-        self, phase: FittedQPhase, inp: PhaseInputs
-    ) -> tuple[Transitions, FloatArray, int | None]:
+    def extend(self, phase: NextQ, inp: PhaseInputs) -> tuple[Transitions, FloatArray, int | None]:
         stored, y0 = inp.stored, inp.targets
         continues = 1.0 - stored.terminated
         td = stored.rewards + self.gamma * continues * phase.stored_next_q(inp).max(axis=1) - y0

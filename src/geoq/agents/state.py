@@ -9,19 +9,17 @@ an older file takes the value that file's code behaved as.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from geoq._validation import MAX_MAGNITUDE
 from geoq.agents.buffer import EpisodeRecord
 
-if TYPE_CHECKING:
-    from geoq.agents.config import GPQConfig
-
 __all__ = [
     "MAX_VALUE",
     "LearningState",
+    "PhaseSchedule",
     "TrainingLog",
     "as_range",
     "check_target",
@@ -78,6 +76,17 @@ def check_value_bounds(bounds: tuple[float, float], what: str) -> tuple[float, f
     return bounds
 
 
+class PhaseSchedule(Protocol):
+    """The settings that say when a fitted-Q phase is due (a :class:`~geoq.agents.GPQConfig`)."""
+
+    @property
+    def train_every(self) -> int: ...
+    @property
+    def train_fraction(self) -> float: ...
+    @property
+    def window(self) -> int: ...
+
+
 @dataclass
 class LearningState:
     """The agent's learning state: everything but the GP, the transitions and the log."""
@@ -104,7 +113,7 @@ class LearningState:
     evidence_due: int = 0
     """The next evidence fit runs once this many transitions are stored."""
 
-    def phase_due(self, config: GPQConfig, n_stored: int) -> bool:
+    def phase_due(self, config: PhaseSchedule, n_stored: int) -> bool:
         """Whether a fitted-Q phase is due mid-episode with ``n_stored`` transitions stored
         (``config.train_every``, ``config.train_fraction``, ``config.window``)."""
         if self.num_timesteps % config.train_every:

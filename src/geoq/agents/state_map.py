@@ -3,7 +3,7 @@
 The agent's GP is optimistic per (state, action) through a smooth kernel; behind a
 wall that optimism leaks across the wall and drains one action at a time
 (docs/exploration.md). :class:`StateMap` measures exploration over *states*, along
-*observed moves* (SPEC §7), in the manner of parti-game (Moore & Atkeson, Machine
+*observed moves*, in the manner of parti-game (Moore & Atkeson, Machine
 Learning 21, 1995) and R-max's known-state MDP:
 
 * **Cells** (:class:`~geoq.agents.map_cells.CellTree`): a grid over the observation

@@ -15,19 +15,20 @@ Both resync the GP every ``resync_every`` changes of its basis set.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 
 from geoq._typing import FloatArray
 from geoq.gp._nb_linalg import mirror_lower
+from geoq.gp._state import OnlineGPState
 from geoq.gp._step import online_step_lower, se_stream
 from geoq.kernels.base import Kernel
 
-if TYPE_CHECKING:
-    from geoq.gp.sparse_online import SparseOnlineGP
+__all__ = ["NoveltyRepair", "kernel_row", "se_loop_parameters", "stream"]
 
-__all__ = ["kernel_row", "se_loop_parameters", "stream"]
+#: The per-point step's ``(k, scale, k(x, x), m) -> k(x, x)`` hook (``None``: the kernel's).
+NoveltyRepair = Callable[[FloatArray, float, float, int], float]
 
 
 def se_loop_parameters(
@@ -44,22 +45,31 @@ def se_loop_parameters(
     return np.ascontiguousarray(inv_ls), np.ascontiguousarray(period), float(variance)
 
 
-def stream(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
-    """Apply the rows of ``X`` [N, d], ``y`` [N] to ``gp`` in order (inputs validated)."""
+def stream(
+    gp: OnlineGPState, X: FloatArray, y: FloatArray, *, resync: Callable[[], None],
+    novelty_repair: Callable[[], NoveltyRepair | None],
+) -> None:  # fmt: skip
+    """Apply the rows of ``X`` [N, d], ``y`` [N] to ``gp``'s state in order (inputs
+    validated). ``resync`` is the GP's resync of its whitened posterior (due every
+    ``gp.resync_every`` changes of the basis set); ``novelty_repair`` gives the per-point
+    step's hook (:meth:`geoq.gp.SparseOnlineGP._novelty_repair`)."""
     if X.shape[0] == 0:
         return
     gp._batch += 1  # a new batch: the factor memo's rounding tolerance holds inside it
     try:
-        _stream_batch(gp, X, y)
+        _stream_batch(gp, X, y, resync, novelty_repair)
     finally:
         gp._batch += 1
 
 
-def _stream_batch(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
+def _stream_batch(
+    gp: OnlineGPState, X: FloatArray, y: FloatArray, resync: Callable[[], None],
+    novelty_repair: Callable[[], NoveltyRepair | None],
+) -> None:  # fmt: skip
     gp._set_dim(X.shape[1])
     fast = se_loop_parameters(gp.kernel, gp._dim)
     if fast is None:
-        _stream_points(gp, X, y)
+        _stream_points(gp, X, y, resync, novelty_repair)
         return
     settings, state, scratch = gp._step_settings(), gp._buffers(), gp._scratch()
     t = 0
@@ -70,10 +80,13 @@ def _stream_batch(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
         )
         gp._changes += changes
         if gp._changes >= gp.resync_every:
-            gp._resync_q()
+            resync()
 
 
-def _stream_points(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
+def _stream_points(
+    gp: OnlineGPState, X: FloatArray, y: FloatArray, resync: Callable[[], None],
+    novelty_repair: Callable[[], NoveltyRepair | None],
+) -> None:  # fmt: skip
     """Per-point path: kernel in Python, step compiled, hooks in between points.
 
     The steps keep ``S`` as its lower triangle (:func:`online_step_lower`); it is
@@ -86,7 +99,7 @@ def _stream_points(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
     row_exponent, variance = (None, 1.0) if fused is None else fused
     S, kbuf, bv = gp._S, gp._kbuf, gp._bv
     settings, state, scratch = gp._step_settings(), gp._buffers(), gp._scratch()
-    repair = gp._novelty_repair()
+    repair = novelty_repair()
     try:
         for x, yt in zip(X, y.tolist(), strict=True):
             m = gp._m
@@ -112,7 +125,7 @@ def _stream_points(gp: SparseOnlineGP, X: FloatArray, y: FloatArray) -> None:
                     gp._changes += 1
             if gp._changes >= gp.resync_every:
                 mirror_lower(S, gp._m)
-                gp._resync_q()
+                resync()
     finally:
         mirror_lower(S, gp._m)
 

@@ -54,7 +54,6 @@ Numerical health
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from os import PathLike
 from typing import Any, Literal, overload
 
@@ -83,7 +82,7 @@ from geoq.gp._resync import (
     reanchor,
 )
 from geoq.gp._state import OnlineGPState
-from geoq.gp._stream import stream
+from geoq.gp._stream import NoveltyRepair, stream
 from geoq.gp.diagnostics import OnlineDiagnostics
 from geoq.gp.numerics import (
     CONFIG,
@@ -213,9 +212,9 @@ class SparseOnlineGP(OnlineGPState):
 
     def _stream(self, X: FloatArray, y: FloatArray) -> None:
         """Apply ``X`` [N, d], ``y`` [N] in order (:func:`geoq.gp._stream.stream`)."""
-        stream(self, X, y)
+        stream(self, X, y, resync=self._resync_q, novelty_repair=self._novelty_repair)
 
-    def _novelty_repair(self) -> Callable[[FloatArray, float, float, int], float] | None:
+    def _novelty_repair(self) -> NoveltyRepair | None:
         """Hook of the per-point path: ``(k, scale, k(x, x), m) -> k(x, x)`` used by the step.
 
         ``None`` here (the step sees the kernel's ``k(x, x)``); a subclass may return the

@@ -1,4 +1,4 @@
-"""Kernel settings: one machine standing in for machines of other kinds (SPEC §11).
+"""Kernel settings: one machine standing in for machines of other kinds.
 
 The last bits of a result depend on which kernels run: the SIMD code NumPy dispatches to
 (``exp`` differs between its AVX-512 and libm paths), OpenBLAS's kernels for the CPU it

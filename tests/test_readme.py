@@ -39,7 +39,7 @@ def test_readme_names_the_locked_versions() -> None:
 
 
 def test_readme_is_a_short_page_for_users() -> None:
-    """SPEC section 9 / STYLE: <= 200 lines, the two commands, nothing dated, no commit hashes
+    """A user's page: <= 200 lines, the two commands, nothing dated, no commit hashes
     (the history lives in docs/results.md and CHANGELOG.md)."""
     text = README.read_text()
     assert len(text.splitlines()) <= 200

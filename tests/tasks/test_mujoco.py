@@ -1,4 +1,4 @@
-"""The agent on Gymnasium's MuJoCo tasks (SPEC §8): runs, acts in the box, is reproducible.
+"""The agent on Gymnasium's MuJoCo tasks: runs, acts in the box, is reproducible.
 
 Needs the optional extra ``mujoco`` (``make test-mujoco``); skipped without it. These are
 smoke tests of the plumbing (unbounded observations scaled from the warm-up's data,

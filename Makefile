@@ -72,8 +72,8 @@ suite: install
 	$(BIN)/geoq suite --out results/suite --scale quick --jobs $(JOBS)
 
 lint: install
-	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks research
+	$(BIN)/ruff format --check src tests benchmarks research
 	$(BIN)/mypy
 	$(BIN)/lint-imports
 

@@ -12,9 +12,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -35,54 +33,3 @@ def test_every_benchmark_runs_quick() -> None:
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     for name in names:
         assert f"=== {name} ===" in done.stdout and f"({name} took" in done.stdout, name
-
-
-def _make_layout(name: str) -> Any:
-    """``benchmarks/explore/layouts.make_env(name)`` (the benchmarks are not a package)."""
-    path = str(BENCHMARKS / "explore")
-    if path not in sys.path:
-        sys.path.insert(0, path)
-    from layouts import make_env
-
-    return make_env(name)
-
-
-@pytest.mark.skipif(not BENCHMARKS.is_dir(), reason="benchmarks/ not shipped here")
-@pytest.mark.parametrize(
-    ("name", "moves", "expected"),
-    [
-        # a horizontal wall at y = 0.5 stops a point going straight up from the right ...
-        ("floor-door-left", [(0.0, 1.0)] * 20, (None, 0.5)),
-        # ... and its door on the left lets it through
-        ("floor-door-left", [(-1.0, 0.0)] * 20 + [(0.0, 1.0)] * 20, (0.0, 1.0)),
-        # the vertical wall's door is at the bottom, the horizontal wall's on the right
-        ("four-rooms", [(1.0, -1.0)] * 10 + [(1.0, 0.0)] * 10 + [(0.0, 1.0)] * 20, (1.0, 1.0)),
-        ("four-rooms", [(0.0, 1.0)] * 20, (None, 0.5)),
-    ],
-)
-def test_a_layouts_walls_stop_a_point_and_its_doors_let_it_through(
-    name: str, moves: list[tuple[float, float]], expected: tuple[float | None, float]
-) -> None:
-    """The crossing rules of ``benchmarks/explore/layouts.py`` (what the exploration
-    figures are measured on), checked with scripted walks: blocked just below a wall,
-    through at a door (the goal is never on these paths)."""
-    env = _make_layout(name)
-    s, _ = env.reset(seed=0)
-    for a in moves:
-        s, *_ = env.step(np.array(a))
-    x, y = expected
-    if x is not None:
-        assert s[0] == x
-    if y == 0.5:
-        assert 0.45 < s[1] < 0.5  # pressed against the wall, not through it
-    else:
-        assert s[1] == y
-
-
-@pytest.mark.skipif(not BENCHMARKS.is_dir(), reason="benchmarks/ not shipped here")
-def test_a_layout_in_another_box_observes_the_unit_square_rescaled() -> None:
-    unit, big = _make_layout("narrow-door"), _make_layout("big-box")
-    assert np.array_equal(big.observation_space.low, [-5.0, -5.0])
-    su, _ = unit.reset(seed=1)
-    sb, _ = big.reset(seed=1)
-    np.testing.assert_allclose(sb, -5.0 + 10.0 * su, rtol=0, atol=1e-12)

@@ -22,8 +22,8 @@ reset seeds from 10,000 + seed) and reports, over every greedy step taken:
 - ``bv``: the GP's basis vectors; with ``hyperparameters="evidence"``, ``fits`` the
   evidence fits so far and the transitions of the last, and the length-scales in use.
 
-    python benchmarks/probe_greedy.py --env Reacher-v5 --seed 0 --steps 3000 --every 1000
-    python benchmarks/probe_greedy.py --env Reacher-v5 --config '{"hyperparameters": "evidence"}'
+    python research/probe_greedy.py --env Reacher-v5 --seed 0 --steps 3000 --every 1000
+    python research/probe_greedy.py --env Reacher-v5 --config '{"hyperparameters": "evidence"}'
 """
 
 from __future__ import annotations

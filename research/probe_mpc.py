@@ -22,7 +22,7 @@ iterations, 8 elites, warm-started from the last plan), scored by the return the
 predict, weighted by the predicted survival. The first 200 steps act
 uniformly at random. Nothing is set per task.
 
-    python benchmarks/probe_mpc.py --env InvertedPendulum-v5 --seed 0 --steps 3000 \\
+    python research/probe_mpc.py --env InvertedPendulum-v5 --seed 0 --steps 3000 \\
         --every 1000 --episodes 3 --unknown 2 [--horizon 50] [--local 10] [--value]
 
 Each checkpoint prints the mean greedy return of ``--episodes`` episodes and each

@@ -2,10 +2,10 @@
 
 Examples (each table row of docs/exploration.md names its command)::
 
-    python benchmarks/explore/run.py --seeds 0 1
-    python benchmarks/explore/run.py --seeds 0 1 --exploit clean
-    python benchmarks/explore/run.py --seeds 0 1 --no-split
-    python benchmarks/explore/run.py --env door-bottom --seeds 0 1
+    python research/explore/run.py --seeds 0 1
+    python research/explore/run.py --seeds 0 1 --exploit clean
+    python research/explore/run.py --seeds 0 1 --no-split
+    python research/explore/run.py --env door-bottom --seeds 0 1
 
 Protocol: ``--steps`` training steps (default 2,000) from ``env.reset(seed=seed)``;
 every ``--every`` steps, greedy success on ``--episodes`` episodes from the default

@@ -7,8 +7,8 @@ settings and the ground truth of a run of ``geoq reproduce --scale paper`` (``OU
 :func:`geoq.experiments.paper.fig3.budget_cell` in this process, one after the other, and prints
 each cell's CPU time and MSEs (so two versions can be compared cell by cell)::
 
-    python benchmarks/paper_cells.py OUT SEED VARIANT:KERNEL:BUDGET ... [--profile FILE]
-    python benchmarks/paper_cells.py OUT 0 --slow    # resistance and pd_novelty, every budget
+    python research/paper_cells.py OUT SEED VARIANT:KERNEL:BUDGET ... [--profile FILE]
+    python research/paper_cells.py OUT 0 --slow    # resistance and pd_novelty, every budget
 
 ``VARIANT`` is ``tuned`` or a variant (``pd_novelty``, ``faithful``). ``--profile FILE``
 writes a cProfile of the last cell. Run it under ``PYTHONPATH`` of the version to time,
@@ -38,6 +38,9 @@ SLOW = tuple(
 
 
 def main(argv: list[str]) -> int:
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__)
+        return 0
     profile = None
     if "--profile" in argv:
         i = argv.index("--profile")

@@ -7,7 +7,7 @@ a seed that sees one with no halving trains, and evaluates, exactly as it did be
 the halving existed: only the seeds this reports as halved need ``agent_run.py``
 again.
 
-    python benchmarks/explore/first_goal.py --env four-rooms --seeds 0 1 2 --steps 3000
+    python research/explore/first_goal.py --env four-rooms --seeds 0 1 2 --steps 3000
 """
 
 from __future__ import annotations

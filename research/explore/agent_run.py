@@ -6,7 +6,7 @@ The protocol of docs/exploration.md ("In the agent"): ``learn`` in calls of
 checkpoint with success >= 0.9, the later checkpoints below it, the curve, the
 map's size and the learning time.
 
-    python benchmarks/explore/agent_run.py --env door-bottom --seeds 0 1 2 3 4
+    python research/explore/agent_run.py --env door-bottom --seeds 0 1 2 3 4
 """
 
 from __future__ import annotations

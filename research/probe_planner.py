@@ -9,7 +9,7 @@ Every ``--every`` steps it prints the mean greedy return of ``--episodes`` episo
 (reset seeds ``10_000 + 100 seed + episode``, held out from training), the learning's
 wall time so far and the greedy plan's time per step.
 
-    python benchmarks/probe_planner.py --env InvertedPendulum-v5 --seed 0 --steps 2000 \\
+    python research/probe_planner.py --env InvertedPendulum-v5 --seed 0 --steps 2000 \\
         --every 500 --episodes 3 [--planner '{"horizon": 15, "samples": 128}']
 
 Needs the ``mujoco`` extra for Gymnasium's MuJoCo tasks.

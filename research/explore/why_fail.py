@@ -12,7 +12,7 @@ classed by how it ended:
   40 steps;
 - ``+gp``: somewhere on the way the map knew no route and the GP chose.
 
-    python benchmarks/explore/why_fail.py --env door-bottom --seed 3
+    python research/explore/why_fail.py --env door-bottom --seed 3
 """
 
 from __future__ import annotations

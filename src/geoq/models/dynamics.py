@@ -12,10 +12,24 @@ transitions; its posterior is a :class:`~geoq.gp.SparseOnlineGP` of at most
 ``max_bv`` basis vectors into which every transition is streamed (a refit at
 :meth:`GPDynamicsModel.fit`, one step at a time by :meth:`GPDynamicsModel.observe`).
 An output that has been constant in the data (a task that never terminated) is that
-constant, with no uncertainty, until the next fit. Where the model has data is measured
-on the states seen (:class:`~geoq.models.support.StateSupport`), in the metric the
-outputs learned: each state input in units of the shortest length-scale any output
-gave it, so that an input no output depends on counts for nothing. The predicted
+constant, with no uncertainty, until the next fit.
+
+Two settings change what the GPs learn (both off by default). ``linear_mean``: each
+output's prior mean is the least-squares linear function of the standardised inputs,
+the GP learns what it leaves (Rasmussen & Williams 2006, section 2.7, with the weights
+fixed at their least-squares values). ``outlier_mads``: a transition whose state change
+lies more than that many median absolute deviations (normal-consistent) from the state
+changes' least-squares line is left out of the state changes' GPs, in the fit and
+when streamed after it; the reward's and the termination's GPs take every transition.
+A stationary kernel must otherwise shorten an input's length-scale everywhere to fit
+a rare jump somewhere: ``InvertedPendulum-v5``'s cart hitting its stop made the state
+changes depend on the cart's position, which they do not elsewhere
+(docs/design-notes.md).
+
+Where the model has data is measured on the states seen
+(:class:`~geoq.models.support.StateSupport`), in the metric the outputs learned: each
+state input in units of the shortest length-scale any output gave it, so that an input
+no output depends on counts for nothing. The predicted
 reward is clipped to the range of the rewards seen: a planner otherwise seeks out the
 GP's overshoot next to a jump (``InvertedPendulum-v5``'s reward, 1 per step alive and
 0 at the step that ends the episode, was predicted at up to 1.02 beside the terminal
@@ -37,6 +51,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 from scipy.spatial.distance import cdist
+from scipy.stats import median_abs_deviation
 
 from geoq._io import ArchiveError
 from geoq._typing import FloatArray
@@ -70,12 +85,19 @@ class ModelSettings:
     tol: float = 1e-6
     """Relative novelty a transition needs to become a basis vector (0 with ``max_bv``
     at least the transitions' count: every one is kept, the exact GP)."""
+    linear_mean: bool = False
+    """Each output's prior mean a linear function of the inputs, fitted by least squares
+    (the GP learns what it leaves); False: the data's mean."""
+    outlier_mads: float = 0.0
+    """A transition whose state change lies more than this many robust deviations (MADs)
+    from the least-squares line is left out of the state changes' GPs (0: none is)."""
 
     def __post_init__(self) -> None:
         check_int(self.max_bv, "max_bv", minimum=1, maximum=5000)
         check_int(self.fit_points, "fit_points", minimum=2, maximum=5000)
         check_int(self.restarts, "restarts", minimum=0, maximum=100)
         check_real(self.tol, "tol", low=0.0, high=1.0)
+        check_real(self.outlier_mads, "outlier_mads", low=0.0, high=1e6)
 
 
 @dataclass(frozen=True)
@@ -105,6 +127,17 @@ def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
     _, S = gp.whitened_posterior
     F, _, _ = robust_cholesky(np.eye(gp.n_bv) - 0.5 * (S + S.T), "a model output's I - S")
     return scipy.linalg.solve_triangular(gp.cholesky_factor, F, lower=False, check_finite=False)
+
+
+def _settings_from(stored: list[float]) -> ModelSettings:
+    """:class:`ModelSettings` from an archive's numbers (4 before linear means, 5 before the
+    outlier test)."""
+    if len(stored) not in (4, 5, 6):
+        raise ValueError(f"settings must hold 4 to 6 numbers, got {len(stored)}")
+    max_bv, fit_points, restarts, tol, linear_mean, mads = (*stored, 0.0, 0.0)[:6]
+    if linear_mean not in (0.0, 1.0):
+        raise ValueError(f"settings' linear_mean must be 0 or 1, got {linear_mean}")
+    return ModelSettings(int(max_bv), int(fit_points), int(restarts), tol, linear_mean == 1.0, mads)
 
 
 class GPDynamicsModel:
@@ -162,8 +195,18 @@ class GPDynamicsModel:
         self.x_scale = np.where(spread > _CONSTANT * (1 + np.abs(self.x_mean)), spread, 1.0)
         Xs = (X - self.x_mean) / self.x_scale
         self.y_mean = Y.mean(axis=0)
-        self.y_scale = Y.std(axis=0)
-        self.gps = [self._fit_output(Xs, Y[:, j], j, rng) for j in range(self.n_outputs)]
+        self.linear = self._linear_part(Xs, Y)
+        R = Y - self.y_mean - Xs @ self.linear  # what the prior means leave [N, J]
+        self.y_scale = (R if self.settings.linear_mean else Y).std(axis=0)
+        self._set_detector(Xs, Y)
+        smooth = ~self._outliers(Xs, Y)  # the state changes' GPs learn these only
+        self.n_outliers = int(np.sum(~smooth))
+        d = self.obs_dim
+        self.gps = [
+            self._fit_output(Xs[smooth], R[smooth, j], j, rng) if j < d and not smooth.all()
+            else self._fit_output(Xs, R[:, j], j, rng)
+            for j in range(self.n_outputs)
+        ]  # fmt: skip
         self.prior_std = np.array([
             0.0 if gp is None else self.y_scale[j] * np.sqrt(_kernel(gp).variance)
             for j, gp in enumerate(self.gps)
@@ -177,13 +220,50 @@ class GPDynamicsModel:
         self.n_seen, self._means, self._factors = X.shape[0], None, None
         return self
 
+    def _set_detector(self, Xs: FloatArray, Y: FloatArray) -> None:
+        """The outlier test of the state changes (``settings.outlier_mads``): their least-
+        squares line ``[D, d_s]`` on the standardised inputs, and the median and the normal-
+        consistent median absolute deviation ``[d_s]`` of the residuals."""
+        d = self.obs_dim
+        self.outlier_line = np.zeros((Xs.shape[1], d))
+        self.outlier_center, self.outlier_mad = np.zeros(d), np.full(d, np.inf)
+        if self.settings.outlier_mads <= 0:
+            return
+        line, *_ = scipy.linalg.lstsq(Xs, Y[:, :d] - self.y_mean[:d], check_finite=False)
+        self.outlier_line = np.ascontiguousarray(line)
+        residual = Y[:, :d] - self.y_mean[:d] - Xs @ self.outlier_line
+        self.outlier_center = np.median(residual, axis=0)
+        mad = median_abs_deviation(residual, axis=0, scale="normal")
+        self.outlier_mad = np.maximum(mad, _CONSTANT * (1 + np.abs(self.outlier_center)))
+
+    def _outliers(self, Xs: FloatArray, Y: FloatArray) -> np.ndarray:
+        """Which transitions ``[N]`` (standardised inputs, outputs) the state changes'
+        GPs leave out: a residual beyond ``outlier_mads`` MADs in any state change."""
+        d = self.obs_dim
+        if self.settings.outlier_mads <= 0:
+            return np.zeros(Xs.shape[0], dtype=bool)
+        residual = Y[:, :d] - self.y_mean[:d] - Xs @ self.outlier_line - self.outlier_center
+        return np.any(np.abs(residual) > self.settings.outlier_mads * self.outlier_mad, axis=1)
+
+    def _linear_part(self, Xs: FloatArray, Y: FloatArray) -> FloatArray:
+        """The prior means' weights ``[D, J]`` on the standardised inputs: least squares
+        (``settings.linear_mean``), else zero."""
+        if not self.settings.linear_mean:
+            return np.zeros((Xs.shape[1], Y.shape[1]))
+        weights, *_ = scipy.linalg.lstsq(Xs, Y - self.y_mean, check_finite=False)
+        return np.ascontiguousarray(weights)  # the layout a loaded copy has: the same bits
+
     def _fit_output(
         self, Xs: FloatArray, y: FloatArray, j: int, rng: np.random.Generator
     ) -> SparseOnlineGP | None:
-        if self.y_scale[j] <= _CONSTANT * (1 + abs(self.y_mean[j])):
+        """The GP of output ``j``'s deviations ``y`` [N] from its prior mean (None: none
+        left, the output is its prior mean)."""
+        if self.y_scale[j] <= _CONSTANT * (
+            1 + abs(self.y_mean[j]) + np.abs(self.linear[:, j]).sum()
+        ):
             self.y_scale[j] = 1.0
             return None
-        z = (y - self.y_mean[j]) / self.y_scale[j]
+        z = y / self.y_scale[j]
         s = self.settings
         with warnings.catch_warnings():  # a length-scale at its bound: an input it ignores
             warnings.simplefilter("ignore", NumericalWarning)
@@ -204,9 +284,12 @@ class GPDynamicsModel:
             raise RuntimeError("observe needs a fitted model: call fit first")
         X, Y = self._outputs([state], [action], [reward], [next_state], [terminated])
         x = (X[0] - self.x_mean) / self.x_scale
+        deviation = Y[0] - self.y_mean - x @ self.linear
+        outlier = bool(self._outliers(x[None, :], Y)[0])
+        self.n_outliers += outlier
         for j, gp in enumerate(self.gps):
-            if gp is not None:
-                gp.update(x, (Y[0, j] - self.y_mean[j]) / self.y_scale[j])
+            if gp is not None and not (outlier and j < self.obs_dim):
+                gp.update(x, deviation[j] / self.y_scale[j])
         r = Y[0, self.obs_dim]
         self.reward_range = np.array([min(self.reward_range[0], r), max(self.reward_range[1], r)])
         self.support.add(X[0, : self.obs_dim] + Y[0, : self.obs_dim])
@@ -247,7 +330,7 @@ class GPDynamicsModel:
         z = np.empty((P, len(w.live)))
         X = np.ascontiguousarray(self._inputs(states, actions))
         posterior_means(X, w.inv_ls, w.basis, w.offsets, w.alpha, w.variance, z)
-        mean = np.tile(self.y_mean, (P, 1))
+        mean = self.y_mean + X @ self.linear
         mean[:, w.live] += z * self.y_scale[w.live]
         np.clip(mean[:, self.obs_dim], *self.reward_range, out=mean[:, self.obs_dim])
         return mean
@@ -275,11 +358,16 @@ class GPDynamicsModel:
         s = self.settings
         out: dict[str, Any] = {
             "dims": np.array([self.obs_dim, self.action_dim, self.n_seen]),
-            "settings": np.array([s.max_bv, s.fit_points, s.restarts, s.tol]),
+            "settings": np.array(
+                [s.max_bv, s.fit_points, s.restarts, s.tol, s.linear_mean, s.outlier_mads]
+            ),
         }
         if not self.fitted:
             return out
         out |= {"x_mean": self.x_mean, "x_scale": self.x_scale, "y_mean": self.y_mean,
+                "linear": self.linear, "outlier_line": self.outlier_line,
+                "outlier_center": self.outlier_center, "outlier_mad": self.outlier_mad,
+                "n_outliers": np.array(self.n_outliers),
                 "y_scale": self.y_scale, "prior_std": self.prior_std,
                 "reward_range": self.reward_range,
                 "live": np.array([gp is not None for gp in self.gps])}  # fmt: skip
@@ -294,8 +382,7 @@ class GPDynamicsModel:
         """Inverse of :meth:`to_arrays`; an :class:`~geoq._io.ArchiveError` names what is wrong."""
         try:
             obs_dim, action_dim, n_seen = (int(v) for v in a["dims"])
-            max_bv, fit_points, restarts, tol = (float(v) for v in a["settings"])
-            settings = ModelSettings(int(max_bv), int(fit_points), int(restarts), tol)
+            settings = _settings_from([float(v) for v in a["settings"]])
             model = cls(obs_dim, action_dim, settings)
             model.n_seen = n_seen
             if "live" not in a:
@@ -306,6 +393,7 @@ class GPDynamicsModel:
                 model.__dict__[name] = as_float_vector(a[name], name, n)
             if np.any(model.x_scale <= 0):
                 raise ValueError("x_scale must be positive")
+            model._restore_prior_means(a)
             if model.reward_range[0] > model.reward_range[1]:
                 raise ValueError("reward_range must be (least, largest)")
             model.gps = [
@@ -323,6 +411,26 @@ class GPDynamicsModel:
         except (KeyError, TypeError, ValueError) as exc:
             raise ArchiveError(f"{source}: the dynamics model is damaged: {exc}") from exc
         return model
+
+    def _restore_prior_means(self, a: dict[str, Any]) -> None:
+        """The linear prior means and the outlier test of :meth:`to_arrays` (a model saved
+        before them: none, as it was fitted)."""
+        D, d, J = self.obs_dim + self.action_dim, self.obs_dim, self.n_outputs
+        self.linear = as_float_matrix(a.get("linear", np.zeros((D, J))), "linear", J)
+        if self.linear.shape != (D, J) or (not self.settings.linear_mean and self.linear.any()):
+            raise ValueError(f"linear must be [{D}, {J}] (zero without linear_mean)")
+        line = as_float_matrix(a.get("outlier_line", np.zeros((D, d))), "outlier_line", d)
+        if line.shape != (D, d):
+            raise ValueError(f"outlier_line must be [{D}, {d}]")
+        self.outlier_line = line
+        self.outlier_center = as_float_vector(
+            a.get("outlier_center", np.zeros(d)), "outlier_center", d
+        )
+        mad = np.asarray(a.get("outlier_mad", np.full(d, np.inf)), dtype=np.float64)
+        if mad.shape != (d,) or np.any(np.isnan(mad)) or np.any(mad <= 0):
+            raise ValueError(f"outlier_mad must be [{d}] positive")
+        self.outlier_mad = mad
+        self.n_outliers = check_int(int(a.get("n_outliers", 0)), "n_outliers", minimum=0)
 
     def __repr__(self) -> str:
         return (f"GPDynamicsModel(obs_dim={self.obs_dim}, action_dim={self.action_dim}, "

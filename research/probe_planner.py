@@ -4,7 +4,8 @@ Not a speed benchmark: the measurement behind the design notes' section "Plannin
 through a learned GP model in the agent". The agent is ``GPQAgent(env_id, seed=seed,
 planner=mode)`` (``--mode cem`` or ``cem-q``) with every other setting its default;
 ``--planner`` overrides fields of :class:`geoq.models.PlannerSettings` (for both the
-training and the greedy plans).
+training and the greedy plans), ``--model`` those of :class:`geoq.models.ModelSettings`;
+``--save DIR`` keeps the agent of every checkpoint (for ``probe_model_fixes.py``).
 Every ``--every`` steps it prints the mean greedy return of ``--episodes`` episodes
 (reset seeds ``10_000 + 100 seed + episode``, held out from training), the learning's
 wall time so far and the greedy plan's time per step.
@@ -21,12 +22,13 @@ import argparse
 import json
 import time
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from geoq.agents import GPQAgent
-from geoq.models import PlannerSettings
+from geoq.models import GPDynamicsModel, ModelSettings, PlannerSettings
 
 
 def greedy_returns(agent: GPQAgent, env_id: str, seed: int, episodes: int) -> tuple[list, int]:
@@ -51,9 +53,13 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--planner", default="{}", help="PlannerSettings fields as JSON")
     ap.add_argument("--mode", default="cem", choices=["cem", "cem-q"])
+    ap.add_argument("--save", default=None, help="save the agent at each checkpoint in DIR")
+    ap.add_argument("--model", default="{}", help="ModelSettings fields as JSON")
     a = ap.parse_args()
     warnings.simplefilter("ignore")  # the evidence fits' bound warnings, one per output
     agent = GPQAgent(a.env, seed=a.seed, planner=a.mode)
+    agent.planning.model = GPDynamicsModel(agent.obs_dim, agent.action_dim,
+                                           ModelSettings(**json.loads(a.model)))  # fmt: skip
     settings = PlannerSettings(**json.loads(a.planner))
     for planner in (agent.planning.training, agent.planning.greedy):
         planner.settings = settings
@@ -63,11 +69,14 @@ def main() -> None:
         agent.learn(a.every)
         learning += time.perf_counter() - t0
         done += a.every
+        if a.save:
+            Path(a.save).mkdir(parents=True, exist_ok=True)
+            agent.save(Path(a.save) / f"{a.env.replace('/', '-')}_{a.mode}_s{a.seed}_{done}.npz")
         t1 = time.perf_counter()
         returns, steps = greedy_returns(agent, a.env, a.seed, a.episodes)
         per_step = 1000 * (time.perf_counter() - t1) / steps
         print(
-            f"{a.env} seed {a.seed} {a.mode} {a.planner} step {done}: "
+            f"{a.env} seed {a.seed} {a.mode} {a.planner} {a.model} step {done}: "
             f"greedy {np.mean(returns):.1f} {returns}; learning {learning:.0f} s; "
             f"greedy plan {per_step:.1f} ms/step",
             flush=True,

@@ -2,8 +2,10 @@
 
 A planner asks the model about ``P`` particles at every model step of every plan:
 ``GPDynamicsModel.predict_mean`` (one compiled loop over every output's basis) and,
-with the std, ``GPDynamicsModel.predict``. The baseline, in the same process, asks
-each output's :class:`~geoq.gp.SparseOnlineGP` in turn, without and with the std. Sizes:
+with the std, ``GPDynamicsModel.predict``; a sampled roll-out's step,
+``GPDynamicsModel.draw``, asks only the state changes for their std. The baseline, in
+the same process, asks each output's :class:`~geoq.gp.SparseOnlineGP` in turn, without
+and with the std (every output's, for ``draw`` too). Sizes:
 InvertedPendulum's (4 states, 1 action: 6 outputs) and Reacher's (10 + 2: 12), on
 2,000 transitions of smooth random dynamics, 200 basis vectors per output, 64
 particles (the planner's default samples).
@@ -42,11 +44,14 @@ def main(quick: bool = False) -> None:
         rng = np.random.default_rng(1)
         S, A = rng.normal(size=(particles, d_s)), rng.uniform(-1, 1, size=(particles, d_a))
         X = (np.hstack([S, A]) - model.x_mean) / model.x_scale
-        for what, std in (("means", False), ("means, std", True)):
-            ours = _seconds(
-                (lambda: model.predict(S, A)) if std else (lambda: model.predict_mean(S, A)),  # noqa: B023
-                repeats,
-            )
+        calls = {
+            "means": lambda: model.predict_mean(S, A),  # noqa: B023
+            "means, std": lambda: model.predict(S, A),  # noqa: B023
+            "draw": lambda: model.draw(S, A, rng),  # noqa: B023
+        }
+        for what, call in calls.items():
+            std = what != "means"
+            ours = _seconds(call, repeats)
             each = _seconds(
                 lambda: [gp.predict(X, return_std=std) for gp in model.gps if gp is not None],  # noqa: B023
                 repeats,

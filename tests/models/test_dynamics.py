@@ -288,3 +288,18 @@ def test_predict_and_observe_need_a_fit() -> None:
 def test_bad_settings_are_refused(field: str, value: float) -> None:
     with pytest.raises(ValueError, match=field):
         ModelSettings(**{field: value})
+
+
+def test_a_drawn_step_is_the_mean_plus_the_std_times_the_generators_normals() -> None:
+    """``draw`` asks only the state changes for their std: the same numbers as ``predict``'s,
+    with the generator's normals in the same order."""
+    rng = np.random.default_rng(14)
+    data = _transitions(150, rng, d_s=3, d_a=2)
+    model = GPDynamicsModel(3, 2, ModelSettings(max_bv=40)).fit(*data, rng)
+    S, A = data[0][:9], data[1][:9]
+    mean, S2 = model.draw(S, A, np.random.default_rng(15))
+    expected_mean, std = model.predict(S, A)
+    z = np.random.default_rng(15).standard_normal((9, 3))
+    assert np.array_equal(mean, expected_mean)
+    assert np.array_equal(S2, S + expected_mean[:, :3] + std[:, :3] * z)
+    assert np.all(std[:, :3] > 0)

@@ -92,9 +92,9 @@ class _LinearModel:
     support = _Everywhere()
     reward_range = np.array([-100.0, 0.0])
 
-    def predict(self, S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def draw(self, S: np.ndarray, A: np.ndarray, rng: np.random.Generator) -> tuple:
         mean = self.predict_mean(S, A)
-        return mean, np.zeros_like(mean)
+        return mean, S + mean[:, :2] + 0.0 * rng.standard_normal(S.shape)
 
     def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:
         change = S @ A_SYS.T + A @ B_SYS.T - S

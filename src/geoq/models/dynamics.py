@@ -54,6 +54,7 @@ from scipy.spatial.distance import cdist
 from scipy.stats import median_abs_deviation
 
 from geoq._io import ArchiveError
+from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import FloatArray
 from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
 from geoq.gp import NumericalWarning, SparseOnlineGP
@@ -158,7 +159,7 @@ class GPDynamicsModel:
         self.gps: list[SparseOnlineGP | None] = []
         self.n_seen = 0
         self._means: _Means | None = None
-        self._factors: list[FloatArray] | None = None  # each output's W, when asked
+        self._factors: dict[int, FloatArray] = {}  # an output's W, once asked for its std
 
     @property
     def fitted(self) -> bool:
@@ -181,6 +182,7 @@ class GPDynamicsModel:
             raise ValueError(f"states, actions and next_states must have {n} rows each")
         return np.hstack([S, A]), np.column_stack([S2 - S, R, T])
 
+    @single_blas_thread  # small dense algebra: geoq._threads
     def fit(
         self, states: Any, actions: Any, rewards: Any, next_states: Any, terminated: Any,
         rng: np.random.Generator,
@@ -217,7 +219,7 @@ class GPDynamicsModel:
         shortest = np.min(relevance, axis=0) if relevance else np.ones(d)
         self.support = StateSupport(np.vstack([X[:, :d], X[:, :d] + Y[:, :d]]),
                                     self.x_scale[:d] * shortest, rng)  # fmt: skip
-        self.n_seen, self._means, self._factors = X.shape[0], None, None
+        self.n_seen, self._means, self._factors = X.shape[0], None, {}
         return self
 
     def _set_detector(self, Xs: FloatArray, Y: FloatArray) -> None:
@@ -294,7 +296,7 @@ class GPDynamicsModel:
         self.reward_range = np.array([min(self.reward_range[0], r), max(self.reward_range[1], r)])
         self.support.add(X[0, : self.obs_dim] + Y[0, : self.obs_dim])
         self.n_seen += 1
-        self._means, self._factors = None, None
+        self._means, self._factors = None, {}
 
     # ------------------------------------------------------------------ prediction
     def _mean_weights(self) -> _Means:
@@ -335,22 +337,45 @@ class GPDynamicsModel:
         np.clip(mean[:, self.obs_dim], *self.reward_range, out=mean[:, self.obs_dim])
         return mean
 
+    @single_blas_thread_for_small_batches  # a planner's particles: geoq._threads
     def predict(self, states: FloatArray, actions: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:meth:`predict_mean` and the predictive std ``[P, J]`` (of the latent outputs,
         noise excluded; 0 for a constant output)."""
         mean = self.predict_mean(states, actions)
+        std = self._stds(self._inputs(states, actions), range(self.n_outputs))
+        return mean, std
+
+    @single_blas_thread_for_small_batches  # a planner's particles: geoq._threads
+    def draw(
+        self, states: FloatArray, actions: FloatArray, rng: np.random.Generator
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`predict_mean` ``[P, J]`` and next states ``[P, d_s]`` drawn with ``rng``
+        from each state change's predictive distribution, ``s + mean + std * N(0, 1)``:
+        a sampled roll-out's step, which asks for no other output's std."""
+        d = self.obs_dim
+        mean = self.predict_mean(states, actions)
+        std = self._stds(self._inputs(states, actions), range(d))
+        return mean, states + mean[:, :d] + std * rng.standard_normal((states.shape[0], d))
+
+    def _stds(self, X: FloatArray, outputs: range) -> FloatArray:
+        """The predictive std ``[P, len(outputs)]`` of ``outputs`` at standardised inputs
+        ``X`` [P, D] (module docstring; each output's ``W`` made once per model change)."""
         w = self._mean_weights()
-        if self._factors is None:
-            self._factors = [_variance_factor(self.gps[j]) for j in w.live]
-        X = self._inputs(states, actions)
-        std = np.zeros_like(mean)
-        for i, (j, W) in enumerate(zip(w.live, self._factors, strict=True)):
+        place = {j: i for i, j in enumerate(w.live)}
+        std = np.zeros((X.shape[0], len(outputs)))
+        for c, j in enumerate(outputs):
+            if j not in place:
+                continue  # a constant output
+            gp = self.gps[j]
+            if j not in self._factors and gp is not None:
+                self._factors[j] = _variance_factor(gp)
+            i = place[j]
             basis = w.basis[w.offsets[i] : w.offsets[i + 1]]
             K = w.variance[i] * np.exp(-0.5 * cdist(X * w.inv_ls[i], basis, "sqeuclidean"))
-            KW = K @ W
+            KW = K @ self._factors[j]
             var = w.variance[i] - np.einsum("pm,pm->p", KW, KW)
-            std[:, j] = np.sqrt(np.maximum(var, 0.0)) * self.y_scale[j]
-        return mean, std
+            std[:, c] = np.sqrt(np.maximum(var, 0.0)) * self.y_scale[j]
+        return std
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:

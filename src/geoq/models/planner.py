@@ -178,8 +178,7 @@ def model_returns(
             mean = model.predict_mean(S, actions[:, t])
             S = S + mean[:, :d]
         else:
-            mean, std = model.predict(S, actions[:, t])
-            S = S + mean[:, :d] + std[:, :d] * rng.standard_normal((P, d))
+            mean, S = model.draw(S, actions[:, t], rng)
         ends = mean[:, d + 1] > 0.5
         unknown = np.where(ends, 0.0, np.clip(model.support.distance(S) - 1.0, 0.0, 1.0))
         rest = sum(gamma**k for k in range(t + 1, H)) * r_least + after  # halted after step t

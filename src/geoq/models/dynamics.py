@@ -148,7 +148,9 @@ class GPDynamicsModel:
     [J] with ``J = d_s + 2`` (state changes, reward, termination); ``gps`` [J] (None for
     a constant output); ``prior_std`` [J] (an output's std far from every transition, 0
     for a constant); ``n_seen`` (transitions taken in); ``reward_range`` [2] (the least
-    and largest reward taken in).
+    and largest reward taken in); ``linear`` [D, J] (the prior means' weights on the
+    standardised inputs, zero without ``linear_mean``); ``n_outliers`` (transitions the
+    state changes' GPs left out).
     """
 
     def __init__(self, obs_dim: int, action_dim: int, settings: ModelSettings | None = None):

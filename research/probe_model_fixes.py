@@ -19,7 +19,8 @@ changing one thing at a time:
   break: the roll-outs halt with it (``--events-dp-only``: only the value iteration
   does), and ``--support-events`` adds its length-scales to the support's metric.
 
-Plans are scored on the model's mean roll-outs. ``--diagnose`` prints the model's
+Plans are scored on the model's mean roll-outs (``--sampled``: one draw of the model
+per particle and step, as the agent's plans). ``--diagnose`` prints the model's
 length-scales and its one-step errors on the outliers and on the rest::
 
     python research/probe_planner.py --env InvertedPendulum-v5 --seed 1 --steps 2000 \\
@@ -79,7 +80,8 @@ class ModelValue:
 
     def __init__(self, model: GPDynamicsModel, S: Array, candidates: Array, gamma: float,
                  k: int = 8, sweeps: int = 500,
-                 event: Callable[[Array, Array], Array] | None = None) -> None:  # fmt: skip
+                 event: Callable[[Array, Array], Array] | None = None,
+                 soft: bool = False) -> None:  # fmt: skip
         d, N, K = model.obs_dim, len(S), len(candidates)
         self.scale, self.k = model.x_scale[:d], k
         SS, AA = np.repeat(S, K, axis=0), np.tile(candidates, (N, 1))
@@ -87,14 +89,14 @@ class ModelValue:
                           for i in range(0, len(SS), 4096)])  # fmt: skip
         S2 = SS + mean[:, :d]
         reward, ends = mean[:, d], mean[:, d + 1] > 0.5
-        off = model.support.distance(S2) > 1.0
-        if event is not None:
-            off |= event(SS, AA) > 0.5
+        off = (model.support.distance(S2) > 1.0).astype(float)
+        if event is not None:  # a predicted break: the least reward for ever, as off the data
+            off = np.maximum(off, event(SS, AA) if soft else (event(SS, AA) > 0.5))
         self.floor = float(model.reward_range[0]) / (1 - gamma)
         self.tree = cKDTree(S / self.scale)
         idx = self.tree.query(S2 / self.scale, k=k)[1]
-        going = (~ends & ~off).astype(float)
-        tail = np.where(off & ~ends, gamma * self.floor, 0.0)
+        going = np.where(ends, 0.0, 1.0 - off)
+        tail = np.where(ends, 0.0, off * gamma * self.floor)
         V = np.full(N, self.floor)
         for self.sweeps in range(1, sweeps + 1):
             new = (reward + tail + gamma * going * V[idx].mean(axis=1)).reshape(N, K).max(axis=1)
@@ -189,7 +191,9 @@ def main() -> None:
     ap.add_argument("--events", action="store_true")
     ap.add_argument("--events-dp-only", action="store_true")
     ap.add_argument("--support-events", action="store_true")
+    ap.add_argument("--soft-events", action="store_true", help="mvi: a break's probability")
     ap.add_argument("--diagnose", action="store_true")
+    ap.add_argument("--sampled", action="store_true", help="sampled roll-outs (the agent's)")
     a = ap.parse_args()
     warnings.simplefilter("ignore")  # the evidence fits' bound warnings
     agent = GPQAgent.load(a.path)
@@ -222,7 +226,8 @@ def main() -> None:
         value = KnnValue(data[0], data[2], data[3], data[4].astype(float),
                          model.support.scale, gamma, a.k)  # fmt: skip
     elif a.value == "mvi":
-        value = ModelValue(model, data[0], agent.candidates, gamma, k=a.k, event=event)
+        value = ModelValue(model, data[0], agent.candidates, gamma, k=a.k, event=event,
+                           soft=a.soft_events)  # fmt: skip
     elif a.value == "q":
         lo, hi = agent.value_bounds()
 
@@ -242,7 +247,7 @@ def main() -> None:
             if event is not None and not a.events_dp_only:
                 return event_returns(model, s[0], U, gamma, value, floor, event)
             return model_returns(model, s[0], U, gamma=gamma, value=value, value_floor=floor,
-                                 rng=None)  # fmt: skip
+                                 rng=plan_rng if a.sampled else None)  # fmt: skip
 
         return planning.greedy.plan(score, plan_rng)[None, :]
 
@@ -259,6 +264,7 @@ def main() -> None:
         returns.append(round(total, 1))
         ends.append(np.round(obs[:2], 2).tolist())
     print(f"{a.path.rsplit('/', 1)[-1]} refit={a.refit} value={a.value} events={a.events} "
+          f"sampled={a.sampled} "
           f"{a.planner}: greedy {np.mean(returns):.1f} {returns}, last states {ends}; "
           f"{1000 * (time.perf_counter() - start) / steps:.1f} ms/step")  # fmt: skip
 

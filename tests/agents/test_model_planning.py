@@ -117,3 +117,80 @@ def test_without_a_planner_nothing_is_modelled(tmp_path) -> None:
 def test_an_unknown_planner_is_refused() -> None:
     with pytest.raises(ValueError, match="planner"):
         GPQAgent(PointToGoal(), planner="mpc")
+
+
+# ---------------------------------------------------------------- planner="policy"
+POLICY = {"planner": "policy", "warmup_steps": 40, "n_candidates": 5, "explore_map": "off"}
+
+
+def _policy_agent(seed: int = 0) -> GPQAgent:
+    return GPQAgent(PointToGoal(), seed=seed, **POLICY)
+
+
+def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over() -> None:
+    agent = _policy_agent()
+    assert agent.config.policy_horizon == 300  # made directly: no time limit
+    assert GPQAgent("Pendulum-v1", planner="policy").config.policy_horizon == 200
+    assert GPQAgent("Pendulum-v1", planner="policy", policy_horizon=7).config.policy_horizon == 7
+    agent.learn(39)
+    assert not agent.planning.active and not agent.planning.model.fitted
+    agent = _policy_agent().learn(239)
+    feedback = agent.planning.feedback
+    starts = len(agent.episodes) + 1  # the unfinished episode's start too
+    assert agent.planning.active and len(feedback.starts) == starts
+    assert 40 <= feedback.searched_at <= 239 and np.isfinite(feedback.value)
+    # a greedy action is the policy's, with nothing drawn
+    state, obs = agent.rng.bit_generator.state, np.array([-0.2])
+    expected = feedback.policy.act(feedback.gains, obs[None])[0]
+    np.testing.assert_array_equal(agent.predict(obs)[0], expected)
+    assert agent.rng.bit_generator.state == state
+
+
+class PointToCentre(PointToGoal):
+    """:class:`PointToGoal`'s moves, paid ``-x'^2`` a step, never terminating: a regulator,
+    where a feedback policy is the answer (``a = -1`` right of 0, ``+1`` left, until near)."""
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        obs, *_ = super().step(action)
+        return obs, -float(obs[0] ** 2), False, self._t >= 40, {}
+
+
+def test_the_policy_learns_to_regulate_the_point() -> None:
+    agent = GPQAgent(PointToCentre(), seed=1, **POLICY).learn(300)
+    for start in (-1.0, -0.5, 0.6, 1.0):
+        env = PointToCentre()
+        obs, _ = env.reset(seed=0, options={"state": [start]})
+        path = []
+        for _ in range(20):
+            obs, *_ = env.step(agent.predict(obs)[0])
+            path.append(abs(obs[0]))
+        # at most one step slower than full speed, then held within 0.1
+        assert max(path[int(np.ceil(abs(start) / 0.1)) :]) < 0.1, (start, path)
+
+
+def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path) -> None:
+    a, b = _policy_agent(3).learn(150), _policy_agent(3).learn(150)
+    for x, y in zip(a.buffer.arrays(), b.buffer.arrays(), strict=True):
+        assert np.array_equal(x, y)
+    a.save(tmp_path / "a.npz")
+    loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
+    ours, theirs = a.planning.feedback, loaded.planning.feedback
+    assert np.array_equal(ours.gains, theirs.gains) and np.array_equal(ours.starts, theirs.starts)
+    assert (ours.value, ours.searched_at) == (theirs.value, theirs.searched_at)
+    a.learn(120)
+    loaded.learn(120)
+    for x, y in zip(a.buffer.arrays(), loaded.buffer.arrays(), strict=True):
+        assert np.array_equal(x, y)
+    with np.load(tmp_path / "a.npz", allow_pickle=False) as f:
+        arrays = dict(f)
+    for key, bad, match in [("model/policy_gains", np.zeros((2, 2)), "policy_gains"),
+                            ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
+                            ("model/policy_scale", np.zeros(1), "scale")]:  # fmt: skip
+        np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
+        with pytest.raises(ArchiveError, match=match):
+            GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())
+
+
+def test_a_bad_policy_horizon_is_refused() -> None:
+    with pytest.raises(ValueError, match="policy_horizon"):
+        GPQAgent(PointToGoal(), planner="policy", policy_horizon=0)

@@ -65,6 +65,12 @@ def as_env(env: gymnasium.Env | str) -> gymnasium.Env:
     return env
 
 
+def time_limit(env: gymnasium.Env) -> int | None:
+    """The env's registered ``max_episode_steps`` (None: none, or made directly)."""
+    limit = env.spec.max_episode_steps if env.spec is not None else None
+    return None if limit is None else int(limit)
+
+
 def _name(env: gymnasium.Env) -> str:
     return env.spec.id if env.spec is not None else type(env.unwrapped).__name__
 

@@ -53,8 +53,10 @@ Prior = Literal["auto", "midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
-Planner = Literal["off", "cem", "cem-q"]
-PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q")
+Planner = Literal["off", "cem", "cem-q", "policy"]
+PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q", "policy")
+#: ``policy_horizon``'s most when the task's time limit sets it.
+POLICY_HORIZON_CAP = 300
 Hyperparameters = Literal["auto", "rule", "evidence"]
 HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
 
@@ -226,8 +228,13 @@ class GPQConfig:
     planner: Planner = "off"
     """``cem``: learn a GP model of the task's steps and act by planning through it over
     a short horizon (:mod:`geoq.agents.model_planning`); ``cem-q``: the same, the plans
-    closed by the agent's ``Q``; ``off``: act on ``Q`` alone. Where both a map and a
-    planner would act, the map's plan comes first."""
+    closed by the agent's ``Q``; ``policy``: act with a linear feedback policy searched
+    through the model over a long horizon, again each episode (PILCO's loop,
+    :mod:`geoq.agents.policy_planning`); ``off``: act on ``Q`` alone. Where both a map and
+    a planner would act, the map's plan comes first."""
+    policy_horizon: int | None = None
+    """Model steps a ``planner="policy"`` search scores its policies over (undiscounted);
+    None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (300 without one)."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -252,6 +259,8 @@ class GPQConfig:
             )
         if self.max_bv is not None:
             check_budget(self.max_bv)
+        if self.policy_horizon is not None:
+            check_int(self.policy_horizon, "policy_horizon", 1, 100_000)
         for name, minimum in (
             ("train_every", 1), ("max_sweeps", 0), ("window", 1), ("replay_budget", 0),
             ("warmup_steps", 1),
@@ -291,9 +300,11 @@ class GPQConfig:
         except ValueError as exc:
             raise ValueError(f"these settings make no valid GP: {exc}") from None
 
-    def for_dims(self, obs_dim: int, action_dim: int) -> GPQConfig:
-        """This config for a task of ``obs_dim`` observations and ``action_dim`` actions:
-        ``max_bv`` resolved (:func:`default_max_bv`), ``lengthscale``'s length checked, and
+    def for_dims(self, obs_dim: int, action_dim: int, time_limit: int | None = None) -> GPQConfig:
+        """This config for a task of ``obs_dim`` observations and ``action_dim`` actions
+        (and episodes of at most ``time_limit`` steps, None: unknown): ``max_bv`` resolved
+        (:func:`default_max_bv`), ``policy_horizon`` resolved from ``time_limit`` (capped
+        at :data:`POLICY_HORIZON_CAP`), ``lengthscale``'s length checked, and
         ``hyperparameters`` and ``prior`` resolved where ``auto``: by whether the rule's
         length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
@@ -316,7 +327,9 @@ class GPQConfig:
             hyperparameters = "rule" if rule_kept else "evidence"
         if prior == "auto":
             prior = "optimistic" if covered else "empirical"
-        return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior)
+        horizon = self.policy_horizon or min(time_limit or POLICY_HORIZON_CAP, POLICY_HORIZON_CAP)
+        return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior,
+                       policy_horizon=horizon)  # fmt: skip
 
     def lengthscales_given(self) -> bool:
         """Whether the user chose the squared exponential's length-scales: ``lengthscale``

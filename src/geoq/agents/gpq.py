@@ -38,8 +38,7 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    actions, and the greedy ones where it knows a route to a termination.
 7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`, where
    every discounted return lies (without it regression + max diverged).
-8. **Planning** (``planner="cem"``; ``"cem-q"`` closes the plans with ``Q``): actions
-   planned through a learned GP model of the steps (:mod:`geoq.agents.model_planning`).
+8. **Planning** (``planner``): acting through a GP model (:mod:`~geoq.agents.model_planning`).
 
 ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
 
@@ -135,7 +134,8 @@ class GPQAgent:
         self.env: gymnasium.Env | None = _env.as_env(env)
         obs_space, act_space = _env.agent_spaces(self.env)
         obs_dim, action_dim = int(obs_space.shape[0]), int(act_space.shape[0])
-        c = GPQConfig(kernel=kernel, max_bv=max_bv, **config).for_dims(obs_dim, action_dim)
+        c = GPQConfig(kernel=kernel, max_bv=max_bv, **config)
+        c = c.for_dims(obs_dim, action_dim, _env.time_limit(self.env))
         seed = check_seed(seed)
         info = task_info(self.env, periods)
         scaling, pending = _env.initial_scaling(self.env, info, scaling)
@@ -330,7 +330,7 @@ class GPQAgent:
         Each step (with its phase and, at the end, the callback) holds the agent's lock."""
         s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
         q = self._q_or_none(s)  # (q_candidates holds the lock)
-        self.planning.start_episode()
+        self.planning.start_episode(s, self.buffer, self.rng)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
             with self._lock:

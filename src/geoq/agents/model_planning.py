@@ -10,7 +10,9 @@ Each action, in training and greedy alike, is then the first of the plan
 it could score where the model does not know (:func:`~geoq.models.model_returns`).
 With ``cem-q`` the plans are closed by the agent's own ``Q`` (the posterior mean at the
 plan's last state and action: model-based value expansion, Feinberg et al. 2018;
-TD-MPC's terminal value); with ``cem`` they end at the horizon. Measured, the ``Q``
+TD-MPC's terminal value); with ``cem`` they end at the horizon. With ``policy`` the
+actions are a feedback policy's, searched through the model at episode starts
+(:mod:`geoq.agents.policy_planning`). Measured, the ``Q``
 learned alongside made the plans worse on ``InvertedPendulum-v5`` and ``Reacher-v5``
 (docs/design-notes.md).
 
@@ -29,6 +31,7 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.config import GPQConfig
+from geoq.agents.policy_planning import FeedbackPlanning
 from geoq.agents.state import LearningState
 from geoq.gp import SparseOnlineGP
 from geoq.models import CEMPlanner, GPDynamicsModel, PlannerSettings, model_returns
@@ -60,32 +63,52 @@ class ModelPlanning:
         self.model = GPDynamicsModel(obs_dim, low.shape[0])
         self.training = CEMPlanner(low, high, PlannerSettings())
         self.greedy = CEMPlanner(low, high, PlannerSettings())
+        assert config.policy_horizon is not None  # resolved by GPQConfig.for_dims
+        self.feedback = FeedbackPlanning(obs_dim, low, high, config.policy_horizon)
         self.next_fit = self.first_fit
 
     @property
     def active(self) -> bool:
-        """Whether actions are planned now (a planner chosen and a model fitted)."""
+        """Whether actions are planned now (a planner chosen and a model fitted; with
+        ``policy``, a policy searched)."""
+        if self.mode == "policy":
+            return self.feedback.policy is not None
         return self.mode != "off" and self.model.fitted
 
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
-        """Take in the buffer's newest transition: a fit when one is due, else a stream."""
+        """Take in the buffer's newest transition: a fit when one is due (``policy``: at
+        the searches, :meth:`start_episode`), else a stream."""
         if self.mode == "off":
             return
         n = len(buffer)
-        if n >= self.next_fit:
-            self.model.fit(*buffer.arrays(last=self.window), rng)
-            self.next_fit = 2 * n
+        if n >= self.next_fit and self.mode != "policy":
+            self._fit(buffer, rng)
         elif self.model.fitted:
             self.model.observe(*(column[-1] for column in buffer.arrays(last=1)))
 
-    def start_episode(self) -> None:
-        """A new episode: the training plan's warm start is forgotten."""
+    def _fit(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
+        self.model.fit(*buffer.arrays(last=self.window), rng)
+        self.next_fit = 2 * len(buffer)
+
+    def start_episode(self, s: FloatArray, buffer: TransitionBuffer,
+                      rng: np.random.Generator) -> None:  # fmt: skip
+        """A new episode from ``s`` [1, d_s]: the training plan's warm start is forgotten;
+        with ``policy``, ``s`` joins the starts, and a search is made if one is due."""
         self.training.reset()
+        if self.mode != "policy":
+            return
+        self.feedback.starts = np.vstack([self.feedback.starts, s])
+        n = len(buffer)
+        if n >= self.first_fit and self.feedback.due(n):
+            self._fit(buffer, rng)
+            self.feedback.search(self.model, n, rng)
 
     def action(
         self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None
     ) -> FloatArray:
         """The planned action ``[1, d_a]`` at ``s`` [1, d_s]; ``rng`` None: a greedy plan."""
+        if self.mode == "policy":
+            return self.feedback.action(s, rng)
         planner = self.training if rng is not None else self.greedy
         if rng is None:
             seed = [agent.seed if agent.seed is not None else 0, agent.num_timesteps]
@@ -115,6 +138,8 @@ class ModelPlanning:
                 plans[f"plan_{name}"] = planner.mean
             if planner.elites is not None:
                 plans[f"elites_{name}"] = planner.elites
+        if self.mode == "policy":
+            plans = self.feedback.to_arrays()
         return self.model.to_arrays() | plans | {"next_fit": np.array(self.next_fit)}
 
     def restore(self, a: dict[str, Any], source: str) -> None:
@@ -131,6 +156,8 @@ class ModelPlanning:
         if model.fitted != (self.next_fit > self.first_fit) or self.next_fit < self.first_fit:
             raise ValueError(f"next_fit {self.next_fit} does not fit a model fitted={model.fitted}")
         self.model = model
+        if self.mode == "policy":
+            self.feedback.restore(a)
         for name, planner in (("training", self.training), ("greedy", self.greedy)):
             steps = (planner.settings.horizon + 1, len(planner.low))
             planner.mean = _plan(a, f"plan_{name}", steps)

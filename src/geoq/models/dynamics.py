@@ -349,15 +349,19 @@ class GPDynamicsModel:
 
     @single_blas_thread_for_small_batches  # a planner's particles: geoq._threads
     def draw(
-        self, states: FloatArray, actions: FloatArray, rng: np.random.Generator
+        self, states: FloatArray, actions: FloatArray, noise: np.random.Generator | FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """:meth:`predict_mean` ``[P, J]`` and next states ``[P, d_s]`` drawn with ``rng``
-        from each state change's predictive distribution, ``s + mean + std * N(0, 1)``:
-        a sampled roll-out's step, which asks for no other output's std."""
+        """:meth:`predict_mean` ``[P, J]`` and next states ``[P, d_s]`` drawn from each state
+        change's predictive distribution, ``s + mean + std * N(0, 1)``: a sampled roll-out's
+        step, which asks for no other output's std. ``noise``: a generator to draw the
+        standard normals ``[P, d_s]`` from, or the normals themselves (common random numbers
+        across the candidates a search compares)."""
         d = self.obs_dim
         mean = self.predict_mean(states, actions)
         std = self._stds(self._inputs(states, actions), range(d))
-        return mean, states + mean[:, :d] + std * rng.standard_normal((states.shape[0], d))
+        if isinstance(noise, np.random.Generator):
+            noise = noise.standard_normal((states.shape[0], d))
+        return mean, states + mean[:, :d] + std * noise
 
     def _stds(self, X: FloatArray, outputs: range) -> FloatArray:
         """The predictive std ``[P, len(outputs)]`` of ``outputs`` at standardised inputs

@@ -37,10 +37,12 @@ from geoq._typing import FloatArray
 from geoq._validation import as_float_vector, check_int, check_real
 from geoq.models.dynamics import GPDynamicsModel
 
-__all__ = ["CEMPlanner", "PlannerSettings", "model_returns"]
+__all__ = ["CEMPlanner", "PlannerSettings", "model_returns", "rollout_returns"]
 
 #: The value of ``P`` states ``[P, d_s]`` and actions ``[P, d_a]`` after the horizon.
 TerminalValue = Callable[[FloatArray, FloatArray], FloatArray]
+#: The actions ``[P, d_a]`` of ``P`` particles at model step ``t`` from their states ``[P, d_s]``.
+ActionRule = Callable[[int, FloatArray], FloatArray]
 
 
 @dataclass(frozen=True)
@@ -168,22 +170,48 @@ def model_returns(
     [d_s] (module docstring). ``rng``: draws of the state changes (None: their means);
     ``value``: the terminal value (None: 0) and ``value_floor`` its least."""
     P, H1, _ = actions.shape
-    d = model.obs_dim
-    S = np.repeat(state[None, :], P, axis=0)
+    starts = np.repeat(state[None, :], P, axis=0)
+    return rollout_returns(model, starts, lambda t, S: actions[:, t], H1 - 1, gamma=gamma,
+                           value=value, value_floor=value_floor, noise=rng)  # fmt: skip
+
+
+def rollout_returns(
+    model: GPDynamicsModel,
+    starts: FloatArray,
+    act: ActionRule,
+    horizon: int,
+    *,
+    gamma: float,
+    value: TerminalValue | None = None,
+    value_floor: float = 0.0,
+    noise: np.random.Generator | FloatArray | None,
+) -> FloatArray:
+    """Predicted returns ``[P]`` of ``P`` particles from ``starts`` [P, d_s], each step's
+    actions chosen by ``act(t, S)`` from the particles' states (open loop: a sequence's
+    ``t``-th action; closed loop: a feedback policy), over ``horizon`` model steps, halted
+    and ended as the module docstring says. ``noise``: None follows the model's means; a
+    generator draws the state changes; an array ``[horizon, P, d_s]`` gives their standard
+    normals (common random numbers). ``value`` (None: 0) is asked about the states after
+    the horizon and the actions ``act(horizon, S)``; ``value_floor`` is its least."""
+    P, d = starts.shape
+    S = starts
     alive, total = np.ones(P), np.zeros(P)
-    H, r_least = H1 - 1, float(model.reward_range[0])
-    after = gamma**H * value_floor if value is not None else 0.0
-    for t in range(H):
-        if rng is None:
-            mean = model.predict_mean(S, actions[:, t])
+    r_least = float(model.reward_range[0])
+    after = gamma**horizon * value_floor if value is not None else 0.0
+    for t in range(horizon):
+        A = act(t, S)
+        if noise is None:
+            mean = model.predict_mean(S, A)
             S = S + mean[:, :d]
         else:
-            mean, S = model.draw(S, actions[:, t], rng)
+            mean, S = model.draw(
+                S, A, noise if isinstance(noise, np.random.Generator) else noise[t]
+            )
         ends = mean[:, d + 1] > 0.5
         unknown = np.where(ends, 0.0, np.clip(model.support.distance(S) - 1.0, 0.0, 1.0))
-        rest = sum(gamma**k for k in range(t + 1, H)) * r_least + after  # halted after step t
+        rest = sum(gamma**k for k in range(t + 1, horizon)) * r_least + after  # halted after t
         total += alive * (gamma**t * mean[:, d] + unknown * rest)
         alive = alive * ~ends * (1.0 - unknown)
     if value is not None:
-        total += gamma**H * alive * value(S, actions[:, -1])
+        total += gamma**horizon * alive * value(S, act(horizon, S))
     return total

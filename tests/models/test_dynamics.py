@@ -206,6 +206,7 @@ def test_the_same_seed_gives_the_same_model() -> None:
         ModelSettings(max_bv=50),
         ModelSettings(max_bv=50, linear_mean=True),
         ModelSettings(max_bv=50, outlier_mads=3.0),
+        ModelSettings(max_bv=50, standardised_support=True),
     ],
 )
 def test_arrays_round_trip_and_the_model_continues_identically(settings: ModelSettings) -> None:
@@ -236,13 +237,32 @@ def test_a_model_saved_before_linear_means_loads_with_the_datas_mean() -> None:
     assert np.array_equal(copy.predict_mean(*q), model.predict_mean(*q))
 
 
+def test_the_standardised_support_counts_an_input_no_output_depends_on() -> None:
+    """A state input the step ignores: the default support does not see a state far along
+    it, the standardised one does; brute force: the nearest seen state in data units."""
+    rng = np.random.default_rng(9)
+    S = rng.uniform(-1.0, 1.0, size=(150, 2))
+    A = rng.uniform(-1.0, 1.0, size=(150, 1))
+    S2 = S + np.column_stack([np.zeros(150), 0.1 * A[:, 0] + 0.3 * np.sin(3 * S[:, 1])])  # not 0
+    data = (S, A, np.ones(150), S2, np.zeros(150))
+    relevance = GPDynamicsModel(2, 1).fit(*data, np.random.default_rng(10))
+    standard = GPDynamicsModel(2, 1, ModelSettings(standardised_support=True)).fit(
+        *data, np.random.default_rng(10)
+    )
+    far = np.array([[6.0, 0.0]])  # far along the ignored input
+    assert 10 * relevance.support.distance(far)[0] < standard.support.distance(far)[0]
+    seen = np.vstack([S, S2]) / standard.x_scale[:2]
+    nearest = np.min(np.linalg.norm(seen - far / standard.x_scale[:2], axis=1))
+    assert standard.support.distance(far)[0] == pytest.approx(nearest / standard.support.spacing)
+
+
 def test_a_damaged_model_is_an_archive_error() -> None:
     rng = np.random.default_rng(7)
     arrays = GPDynamicsModel(2, 1).fit(*_transitions(50, rng), rng).to_arrays()
     for key, bad in (("x_scale", np.array([1.0, -1.0, 1.0])), ("y_mean", np.ones(2)),
                      ("dims", np.array([2])), ("linear", np.ones((3, 4))),
                      ("linear", np.ones((2, 4))), ("settings", np.array([50, 300, 1, 0, 0.5])),
-                     ("settings", np.ones(7)), ("outlier_mad", np.zeros(2)),
+                     ("settings", np.ones(8)), ("outlier_mad", np.zeros(2)),
                      ("outlier_line", np.ones((3, 3))), ("n_outliers", np.array(-1))):  # fmt: skip
         with pytest.raises(ArchiveError, match="dynamics model"):
             GPDynamicsModel.from_arrays({**arrays, key: bad})

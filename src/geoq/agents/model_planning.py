@@ -34,7 +34,7 @@ from geoq.agents.config import GPQConfig
 from geoq.agents.policy_planning import FeedbackPlanning
 from geoq.agents.state import LearningState
 from geoq.gp import SparseOnlineGP
-from geoq.models import CEMPlanner, GPDynamicsModel, PlannerSettings, model_returns
+from geoq.models import CEMPlanner, GPDynamicsModel, ModelSettings, PlannerSettings, model_returns
 
 __all__ = ["ModelPlanning", "PlanningAgent"]
 
@@ -60,7 +60,9 @@ class ModelPlanning:
     def __init__(self, config: GPQConfig, obs_dim: int, low: FloatArray, high: FloatArray):
         self.mode, self.window = config.planner, config.window
         self.first_fit = max(config.warmup_steps, 2)
-        self.model = GPDynamicsModel(obs_dim, low.shape[0])
+        # a policy's long roll-outs must stop where any state input leaves the data
+        settings = ModelSettings(standardised_support=self.mode == "policy")
+        self.model = GPDynamicsModel(obs_dim, low.shape[0], settings)
         self.training = CEMPlanner(low, high, PlannerSettings())
         self.greedy = CEMPlanner(low, high, PlannerSettings())
         assert config.policy_horizon is not None  # resolved by GPQConfig.for_dims

@@ -29,7 +29,9 @@ changes depend on the cart's position, which they do not elsewhere
 Where the model has data is measured on the states seen
 (:class:`~geoq.models.support.StateSupport`), in the metric the outputs learned: each
 state input in units of the shortest length-scale any output gave it, so that an input
-no output depends on counts for nothing. The predicted
+no output depends on counts for nothing; or (``standardised_support``) in the states
+standardised by the data, so that leaving the data along an input that nothing seen
+depends on counts too (a cart's position before it ever met its stop). The predicted
 reward is clipped to the range of the rewards seen: a planner otherwise seeks out the
 GP's overshoot next to a jump (``InvertedPendulum-v5``'s reward, 1 per step alive and
 0 at the step that ends the episode, was predicted at up to 1.02 beside the terminal
@@ -92,6 +94,10 @@ class ModelSettings:
     outlier_mads: float = 0.0
     """A transition whose state change lies more than this many robust deviations (MADs)
     from the least-squares line is left out of the state changes' GPs (0: none is)."""
+    standardised_support: bool = False
+    """Measure the support in the states standardised by the data, every input counting
+    alike; False: in the outputs' shortest length-scales, so that an input no output
+    depends on counts for nothing (module docstring)."""
 
     def __post_init__(self) -> None:
         check_int(self.max_bv, "max_bv", minimum=1, maximum=5000)
@@ -132,13 +138,17 @@ def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
 
 def _settings_from(stored: list[float]) -> ModelSettings:
     """:class:`ModelSettings` from an archive's numbers (4 before linear means, 5 before the
-    outlier test)."""
-    if len(stored) not in (4, 5, 6):
-        raise ValueError(f"settings must hold 4 to 6 numbers, got {len(stored)}")
-    max_bv, fit_points, restarts, tol, linear_mean, mads = (*stored, 0.0, 0.0)[:6]
-    if linear_mean not in (0.0, 1.0):
-        raise ValueError(f"settings' linear_mean must be 0 or 1, got {linear_mean}")
-    return ModelSettings(int(max_bv), int(fit_points), int(restarts), tol, linear_mean == 1.0, mads)
+    outlier test, 6 before the standardised support)."""
+    if len(stored) not in (4, 5, 6, 7):
+        raise ValueError(f"settings must hold 4 to 7 numbers, got {len(stored)}")
+    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised = (*stored, 0.0, 0.0, 0.0)[
+        :7
+    ]
+    for name, flag in (("linear_mean", linear_mean), ("standardised_support", standardised)):
+        if flag not in (0.0, 1.0):
+            raise ValueError(f"settings' {name} must be 0 or 1, got {flag}")
+    return ModelSettings(int(max_bv), int(fit_points), int(restarts), tol, linear_mean == 1.0,
+                         mads, standardised == 1.0)  # fmt: skip
 
 
 class GPDynamicsModel:
@@ -219,6 +229,8 @@ class GPDynamicsModel:
         d, D = self.obs_dim, X.shape[1]
         relevance = [np.broadcast_to(_kernel(gp).lengthscale, (D,))[:d] for gp in self.gps if gp]
         shortest = np.min(relevance, axis=0) if relevance else np.ones(d)
+        if self.settings.standardised_support:
+            shortest = np.ones(d)
         self.support = StateSupport(np.vstack([X[:, :d], X[:, :d] + Y[:, :d]]),
                                     self.x_scale[:d] * shortest, rng)  # fmt: skip
         self.n_seen, self._means, self._factors = X.shape[0], None, {}
@@ -387,11 +399,10 @@ class GPDynamicsModel:
     def to_arrays(self) -> dict[str, Any]:
         """The model as plain arrays (for an agent's archive); :meth:`from_arrays` reads it."""
         s = self.settings
+        numbers = [s.max_bv, s.fit_points, s.restarts, s.tol, s.linear_mean, s.outlier_mads]
         out: dict[str, Any] = {
             "dims": np.array([self.obs_dim, self.action_dim, self.n_seen]),
-            "settings": np.array(
-                [s.max_bv, s.fit_points, s.restarts, s.tol, s.linear_mean, s.outlier_mads]
-            ),
+            "settings": np.array([*numbers, s.standardised_support]),
         }
         if not self.fitted:
             return out

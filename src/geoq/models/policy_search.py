@@ -29,7 +29,17 @@ from geoq._validation import as_float_matrix, as_float_vector, check_int, check_
 from geoq.models.dynamics import GPDynamicsModel
 from geoq.models.planner import rollout_returns
 
-__all__ = ["LinearFeedback", "PolicySearchSettings", "policy_returns", "search_gains"]
+__all__ = [
+    "HOLDOUT_SE",
+    "LinearFeedback",
+    "PolicySearchSettings",
+    "particle_returns",
+    "policy_returns",
+    "search_gains",
+]
+
+#: Standard errors by which a search's winner must beat the current gains on fresh draws.
+HOLDOUT_SE = 2.0
 
 
 @dataclass(frozen=True)
@@ -115,6 +125,17 @@ def policy_returns(
     from every start ``[P, d_s]``, over ``T`` steps of sampled roll-outs whose state
     changes take the standard normals ``normals`` [T, P, d_s] (the same for every
     candidate)."""
+    return particle_returns(model, policy, gains, starts, normals).mean(axis=1)
+
+
+def particle_returns(
+    model: GPDynamicsModel,
+    policy: LinearFeedback,
+    gains: FloatArray,
+    starts: FloatArray,
+    normals: FloatArray,
+) -> FloatArray:
+    """:func:`policy_returns` before the mean: each particle's return ``[C, P]``."""
     C, P = gains.shape[0], starts.shape[0]
     T = normals.shape[0]
     flat_starts = np.tile(starts, (C, 1))
@@ -124,7 +145,7 @@ def policy_returns(
         return policy.act_each(gains, S)
 
     total = rollout_returns(model, flat_starts, act, T, gamma=1.0, noise=flat_normals)
-    return total.reshape(C, P).mean(axis=1)
+    return total.reshape(C, P)
 
 
 def search_gains(
@@ -144,8 +165,10 @@ def search_gains(
     around the mean, and refits the Gaussian to the ``elites``. Ties keep the earlier
     candidate: the current gains stay unless something scores higher. With
     ``settings.holdout`` the winner must then beat the current gains again on fresh
-    draws (the best of many on one sample is flattered by it), and the score returned is
-    the kept gains' on those fresh draws."""
+    draws (the best of many on one sample is flattered by it), by more than
+    :data:`HOLDOUT_SE` standard errors of the particles' paired differences (a policy
+    that works is not traded for one that differs on a single lucky particle), and the
+    score returned is the kept gains' on those fresh draws."""
     c = settings or PolicySearchSettings()
     gains = as_float_matrix(gains, "gains", policy.shape[1])
     if gains.shape != policy.shape:
@@ -168,5 +191,11 @@ def search_gains(
         return best, best_value
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
-    fresh = policy_returns(model, policy, np.stack([gains, best]), picked, normals)
-    return (best, float(fresh[1])) if fresh[1] > fresh[0] else (gains, float(fresh[0]))
+    fresh = particle_returns(model, policy, np.stack([gains, best]), picked, normals)
+    gain = fresh[1] - fresh[0]  # paired: the same starts and draws [P]
+    sure = (
+        gain.mean() > HOLDOUT_SE * gain.std(ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else True
+    )
+    if gain.mean() > 0 and sure:
+        return best, float(fresh[1].mean())
+    return gains, float(fresh[0].mean())

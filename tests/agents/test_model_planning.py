@@ -120,7 +120,8 @@ def test_an_unknown_planner_is_refused() -> None:
 
 
 # ---------------------------------------------------------------- planner="policy"
-POLICY = {"planner": "policy", "warmup_steps": 40, "n_candidates": 5, "explore_map": "off"}
+POLICY = {"planner": "policy", "warmup_steps": 40, "n_candidates": 5, "explore_map": "off",
+          "policy_horizon": 40}  # fmt: skip
 
 
 def _policy_agent(seed: int = 0) -> GPQAgent:
@@ -129,7 +130,7 @@ def _policy_agent(seed: int = 0) -> GPQAgent:
 
 def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over() -> None:
     agent = _policy_agent()
-    assert agent.config.policy_horizon == 300  # made directly: no time limit
+    assert GPQAgent(PointToGoal(), planner="policy").config.policy_horizon == 1000  # no limit
     assert GPQAgent("Pendulum-v1", planner="policy").config.policy_horizon == 200
     assert GPQAgent("Pendulum-v1", planner="policy", policy_horizon=7).config.policy_horizon == 7
     agent.learn(39)

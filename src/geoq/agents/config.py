@@ -56,7 +56,7 @@ REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
 Planner = Literal["off", "cem", "cem-q", "policy"]
 PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q", "policy")
 #: ``policy_horizon``'s most when the task's time limit sets it.
-POLICY_HORIZON_CAP = 300
+POLICY_HORIZON_CAP = 1000
 Hyperparameters = Literal["auto", "rule", "evidence"]
 HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
 
@@ -234,7 +234,7 @@ class GPQConfig:
     a planner would act, the map's plan comes first."""
     policy_horizon: int | None = None
     """Model steps a ``planner="policy"`` search scores its policies over (undiscounted);
-    None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (300 without one)."""
+    None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (1,000 without one)."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones

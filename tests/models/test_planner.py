@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from geoq.models import CEMPlanner, GPDynamicsModel, ModelSettings, PlannerSettings, model_returns
+from geoq.models import (
+    CEMPlanner,
+    GPDynamicsModel,
+    ModelSettings,
+    PlannerSettings,
+    model_returns,
+    rollout_returns,
+)
 
 DT = 0.1
 A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
@@ -92,9 +99,9 @@ class _LinearModel:
     support = _Everywhere()
     reward_range = np.array([-100.0, 0.0])
 
-    def draw(self, S: np.ndarray, A: np.ndarray, rng: np.random.Generator) -> tuple:
+    def draw(self, S: np.ndarray, A: np.ndarray, normals: np.ndarray) -> tuple:
         mean = self.predict_mean(S, A)
-        return mean, S + mean[:, :2] + 0.0 * rng.standard_normal(S.shape)
+        return mean, S + mean[:, :2] + 0.0 * normals
 
     def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:
         change = S @ A_SYS.T + A @ B_SYS.T - S
@@ -192,3 +199,24 @@ def test_act_best_takes_the_best_scored_sequences_first_action() -> None:
     a = planner.plan(score, np.random.default_rng(6))
     every = np.concatenate(seen)
     assert a[0] == every[np.argmin(np.abs(every[:, 0, 0] - 0.3)), 0, 0]
+
+
+def test_roll_outs_that_end_at_different_steps_are_each_particles_own() -> None:
+    """Particles that end, halt or run on: the batch (which stops stepping the ended ones)
+    against each particle rolled out alone, and the generator's stream either way."""
+    rng = np.random.default_rng(5)
+    S = rng.uniform(-1.0, 1.0, size=(300, 1))
+    A = rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2 = S + 0.1 * A
+    model = GPDynamicsModel(1, 1).fit(S, A, np.ones(300), S2, (S2[:, 0] > 0.5).astype(float), rng)
+    U = rng.uniform(-1.0, 1.0, size=(12, 15, 1))
+    U[:4] = 1.0  # toward the end
+    U[4:8] = -1.0  # off the data
+    s0 = np.array([0.2])
+    batch = model_returns(model, s0, U, gamma=0.9, value=None, rng=np.random.default_rng(6))
+    normals = np.random.default_rng(6).standard_normal((14, 12, 1))
+    for p in range(12):
+        alone = rollout_returns(model, s0[None], lambda t, X, rows, p=p: U[p, t][None], 14,
+                                gamma=0.9, noise=normals[:, p : p + 1])  # fmt: skip
+        assert batch[p] == pytest.approx(alone[0], rel=1e-12, abs=1e-12)
+    np.testing.assert_allclose(batch[:4], 1 + 0.9 + 0.81 + 0.729)  # ended at the 4th step

@@ -73,18 +73,20 @@ def _policy(box: float = 20.0) -> LinearFeedback:
 
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**32 - 1), st.floats(0.1, 100.0))
-def test_feedback_actions_stay_in_the_box_and_each_candidate_acts_as_alone(seed, spread) -> None:
+def test_feedback_actions_stay_in_the_box_and_each_state_acts_as_alone(seed, spread) -> None:
     rng = np.random.default_rng(seed)
     policy = LinearFeedback(np.array([-1.0, 0.0]), np.array([2.0, 0.5]), rng.normal(size=3),
                             rng.uniform(0.1, 2.0, 3))  # fmt: skip
-    gains = spread * rng.standard_normal((4, *policy.shape))
-    S = spread * rng.standard_normal((4 * 5, 3))
-    A = policy.act_each(gains, S)
+    gains = spread * rng.standard_normal((20, *policy.shape))
+    S = spread * rng.standard_normal((20, 3))
+    A = policy.act_rows(gains, S)
     assert np.all(A >= [-1.0, 0.0]) and np.all(A <= [2.0, 0.5])
-    for c in range(4):
-        np.testing.assert_array_equal(
-            A[5 * c : 5 * c + 5], policy.act(gains[c], S[5 * c : 5 * c + 5])
-        )
+    for i in range(20):  # a brute-force loop, one state and one policy at a time
+        z = np.append((S[i] - policy.center) / policy.scale, 1.0)
+        expected = policy.mid + policy.half * np.tanh([sum(z * g) for g in gains[i]])
+        np.testing.assert_allclose(A[i], expected, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(A[i], policy.act(gains[i], S[i : i + 1])[0])
+        np.testing.assert_array_equal(A[i], policy.act_rows(gains[i : i + 1], S[i : i + 1])[0])
 
 
 def test_policy_returns_are_each_candidates_own_roll_outs_on_the_same_draws() -> None:
@@ -94,7 +96,7 @@ def test_policy_returns_are_each_candidates_own_roll_outs_on_the_same_draws() ->
     normals = rng.standard_normal((25, len(STARTS), 2))
     got = policy_returns(model, policy, gains, STARTS, normals)  # type: ignore[arg-type]
     for c in range(3):
-        alone = rollout_returns(model, STARTS, lambda t, S, c=c: policy.act(gains[c], S), 25,  # type: ignore[arg-type]
+        alone = rollout_returns(model, STARTS, lambda t, S, rows, c=c: policy.act(gains[c], S), 25,  # type: ignore[arg-type]
                                 gamma=1.0, noise=normals)  # fmt: skip
         assert got[c] == pytest.approx(alone.mean(), rel=1e-12)
     # with no noise at all, the mean is the true system's return (a brute-force loop)

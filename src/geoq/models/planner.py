@@ -41,8 +41,9 @@ __all__ = ["CEMPlanner", "PlannerSettings", "model_returns", "rollout_returns"]
 
 #: The value of ``P`` states ``[P, d_s]`` and actions ``[P, d_a]`` after the horizon.
 TerminalValue = Callable[[FloatArray, FloatArray], FloatArray]
-#: The actions ``[P, d_a]`` of ``P`` particles at model step ``t`` from their states ``[P, d_s]``.
-ActionRule = Callable[[int, FloatArray], FloatArray]
+#: The actions ``[N, d_a]`` at model step ``t`` of the particles ``rows`` [N] (indices
+#: among all of them) from their states ``[N, d_s]``.
+ActionRule = Callable[[int, FloatArray, np.ndarray], FloatArray]
 
 
 @dataclass(frozen=True)
@@ -171,7 +172,7 @@ def model_returns(
     ``value``: the terminal value (None: 0) and ``value_floor`` its least."""
     P, H1, _ = actions.shape
     starts = np.repeat(state[None, :], P, axis=0)
-    return rollout_returns(model, starts, lambda t, S: actions[:, t], H1 - 1, gamma=gamma,
+    return rollout_returns(model, starts, lambda t, S, rows: actions[rows, t], H1 - 1, gamma=gamma,
                            value=value, value_floor=value_floor, noise=rng)  # fmt: skip
 
 
@@ -187,31 +188,43 @@ def rollout_returns(
     noise: np.random.Generator | FloatArray | None,
 ) -> FloatArray:
     """Predicted returns ``[P]`` of ``P`` particles from ``starts`` [P, d_s], each step's
-    actions chosen by ``act(t, S)`` from the particles' states (open loop: a sequence's
-    ``t``-th action; closed loop: a feedback policy), over ``horizon`` model steps, halted
-    and ended as the module docstring says. ``noise``: None follows the model's means; a
-    generator draws the state changes; an array ``[horizon, P, d_s]`` gives their standard
-    normals (common random numbers). ``value`` (None: 0) is asked about the states after
-    the horizon and the actions ``act(horizon, S)``; ``value_floor`` is its least."""
+    actions chosen by ``act(t, S, rows)`` from the states ``S`` of the particles ``rows``
+    still running (open loop: a sequence's ``t``-th action; closed loop: a feedback
+    policy), over ``horizon`` model steps, halted and ended as the module docstring says;
+    a particle that has ended or halted for sure is not stepped further. ``noise``: None
+    follows the model's means; a generator draws the state changes' standard normals
+    ``[P, d_s]`` each step (every particle's, so the stream does not depend on which are
+    running); an array ``[horizon, P, d_s]`` gives them (common random numbers).
+    ``value`` (None: 0) is asked about the states after the horizon and the actions
+    ``act(horizon, S, rows)``; ``value_floor`` is its least."""
     P, d = starts.shape
-    S = starts
+    S = starts.copy()
     alive, total = np.ones(P), np.zeros(P)
     r_least = float(model.reward_range[0])
     after = gamma**horizon * value_floor if value is not None else 0.0
+    rows = np.arange(P)
     for t in range(horizon):
-        A = act(t, S)
+        rows = rows[alive[rows] > 0.0]
+        if rows.size == 0:
+            return total
+        s, a = S[rows], act(t, S[rows], rows)
         if noise is None:
-            mean = model.predict_mean(S, A)
-            S = S + mean[:, :d]
+            mean = model.predict_mean(s, a)
+            s = s + mean[:, :d]
         else:
-            mean, S = model.draw(
-                S, A, noise if isinstance(noise, np.random.Generator) else noise[t]
+            normals = (
+                noise.standard_normal((P, d))
+                if isinstance(noise, np.random.Generator)
+                else noise[t]
             )
+            mean, s = model.draw(s, a, normals[rows])
+        S[rows] = s
         ends = mean[:, d + 1] > 0.5
-        unknown = np.where(ends, 0.0, np.clip(model.support.distance(S) - 1.0, 0.0, 1.0))
+        unknown = np.where(ends, 0.0, np.clip(model.support.distance(s) - 1.0, 0.0, 1.0))
         rest = sum(gamma**k for k in range(t + 1, horizon)) * r_least + after  # halted after t
-        total += alive * (gamma**t * mean[:, d] + unknown * rest)
-        alive = alive * ~ends * (1.0 - unknown)
-    if value is not None:
-        total += gamma**horizon * alive * value(S, act(horizon, S))
+        total[rows] += alive[rows] * (gamma**t * mean[:, d] + unknown * rest)
+        alive[rows] = alive[rows] * ~ends * (1.0 - unknown)
+    rows = rows[alive[rows] > 0.0]
+    if value is not None and rows.size:
+        total[rows] += gamma**horizon * alive[rows] * value(S[rows], act(horizon, S[rows], rows))
     return total

@@ -9,8 +9,8 @@ data, and its gains ``K`` [d_a, d_s + 1] are searched by the cross-entropy metho
 the mean undiscounted return of ``particles`` sampled roll-outs
 (:func:`~geoq.models.planner.rollout_returns`: trajectory sampling, halted where the
 model has no data), from start states drawn among the episodes' first states, every
-candidate of an iteration seeing the same starts and the same normals (common random
-numbers, fixed for the whole search: a comparison is not drowned by the draws' noise).
+candidate seeing the same starts and the same normals (common random numbers, fixed
+for the whole search: a comparison is not drowned by the draws' noise).
 
 Where a short plan cannot see far, a policy can: ``InvertedPendulum-v5``'s plans drove
 the cart into its stop beyond their horizon (docs/design-notes.md); a policy scored
@@ -101,17 +101,15 @@ class LinearFeedback:
 
     def act(self, gains: FloatArray, S: FloatArray) -> FloatArray:
         """Actions ``[P, d_a]`` of one policy's gains ``[d_a, d_s + 1]`` at states ``[P, d_s]``."""
-        return self.act_each(gains[None], S)
+        return self.act_rows(np.broadcast_to(gains, (S.shape[0], *gains.shape)), S)
 
-    def act_each(self, gains: FloatArray, S: FloatArray) -> FloatArray:
-        """Actions ``[C * P, d_a]`` of ``C`` policies ``[C, d_a, d_s + 1]`` at states
-        ``[C * P, d_s]`` (candidate ``c``'s particles in rows ``c * P .. (c + 1) * P - 1``).
-        Each action is its own sum over the features, so a candidate acts bit for bit as
-        it would alone (what the search scored is what the agent does)."""
-        C, (d_a, F) = gains.shape[0], self.shape
-        Z = self.features(S).reshape(C, -1, 1, F)
-        y = np.sum(Z * gains[:, None, :, :], axis=-1)  # [C, P, d_a]
-        return (self.mid + self.half * np.tanh(y)).reshape(S.shape[0], d_a)
+    def act_rows(self, gains: FloatArray, S: FloatArray) -> FloatArray:
+        """Actions ``[N, d_a]`` of ``N`` states ``[N, d_s]``, each under its own gains
+        ``[N, d_a, d_s + 1]``. Each action is its own sum over the features, so a state
+        is acted on bit for bit alike whatever else is in the batch (what the search
+        scored is what the agent does)."""
+        y = np.sum(self.features(S)[:, None, :] * gains, axis=-1)  # [N, d_a]
+        return self.mid + self.half * np.tanh(y)
 
 
 def policy_returns(
@@ -138,11 +136,11 @@ def particle_returns(
     """:func:`policy_returns` before the mean: each particle's return ``[C, P]``."""
     C, P = gains.shape[0], starts.shape[0]
     T = normals.shape[0]
-    flat_starts = np.tile(starts, (C, 1))
+    flat_starts = np.tile(starts, (C, 1))  # candidate c's particles: rows c P .. (c + 1) P - 1
     flat_normals = np.tile(normals, (1, C, 1))
 
-    def act(t: int, S: FloatArray) -> FloatArray:
-        return policy.act_each(gains, S)
+    def act(t: int, S: FloatArray, rows: np.ndarray) -> FloatArray:
+        return policy.act_rows(gains[rows // P], S)
 
     total = rollout_returns(model, flat_starts, act, T, gamma=1.0, noise=flat_normals)
     return total.reshape(C, P)
@@ -182,6 +180,7 @@ def search_gains(
         candidates = mean + std * rng.standard_normal((c.candidates, *policy.shape))
         candidates[0], candidates[1] = mean, best
         values = policy_returns(model, policy, candidates, picked, normals)
+        values = np.where(np.isnan(values), -np.inf, values)  # a diverged roll-out loses
         order = np.argsort(-values, kind="stable")
         if values[order[0]] > best_value:
             best, best_value = candidates[order[0]].copy(), float(values[order[0]])
@@ -193,9 +192,7 @@ def search_gains(
     normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
     fresh = particle_returns(model, policy, np.stack([gains, best]), picked, normals)
     gain = fresh[1] - fresh[0]  # paired: the same starts and draws [P]
-    sure = (
-        gain.mean() > HOLDOUT_SE * gain.std(ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else True
-    )
-    if gain.mean() > 0 and sure:
+    se = gain.std(ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else 0.0
+    if gain.mean() > HOLDOUT_SE * se:
         return best, float(fresh[1].mean())
     return gains, float(fresh[0].mean())

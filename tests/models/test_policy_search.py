@@ -117,7 +117,8 @@ def _check_near_lqr(policy: LinearFeedback, gains: np.ndarray, T: int) -> None:
 
 def test_the_search_through_the_exact_system_finds_the_lqr_policy() -> None:
     policy = _policy()
-    search = PolicySearchSettings(horizon=100, particles=4, candidates=48, iterations=30, elites=6)
+    search = PolicySearchSettings(horizon=100, particles=4, candidates=48, iterations=30, elites=6,
+                                  patience=30)  # fmt: skip
     gains, value = search_gains(_KnownModel(), policy, np.zeros(policy.shape), STARTS,  # type: ignore[arg-type]
                                 np.random.default_rng(1), search)  # fmt: skip
     assert np.isfinite(value)
@@ -133,7 +134,8 @@ def test_the_search_through_a_learned_model_finds_the_lqr_policy() -> None:
         S, A, _reward(S, A), S2, np.zeros(400), rng
     )
     policy = _policy()
-    search = PolicySearchSettings(horizon=100, particles=4, candidates=48, iterations=30, elites=6)
+    search = PolicySearchSettings(horizon=100, particles=4, candidates=48, iterations=30, elites=6,
+                                  patience=30)  # fmt: skip
     gains, _ = search_gains(model, policy, np.zeros(policy.shape), STARTS, rng, search)
     _check_near_lqr(policy, gains, 100)
 
@@ -142,15 +144,19 @@ def test_ties_keep_the_current_gains_and_the_same_seed_searches_alike() -> None:
     policy = _policy()
 
     class _Flat(_KnownModel):
+        steps = 0
+
         def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:
+            self.steps += 1
             mean = super().predict_mean(S, A)
             mean[:, 2] = -1.0  # every policy scores the same
             return mean
 
-    start = np.full(policy.shape, 0.3)
-    gains, value = search_gains(_Flat(), policy, start, STARTS, np.random.default_rng(3),  # type: ignore[arg-type]
-                                PolicySearchSettings(horizon=5))  # fmt: skip
+    start, flat = np.full(policy.shape, 0.3), _Flat()
+    gains, value = search_gains(flat, policy, start, STARTS, np.random.default_rng(3),  # type: ignore[arg-type]
+                                PolicySearchSettings(horizon=5, patience=2))  # fmt: skip
     assert np.array_equal(gains, start) and value == -5.0
+    assert flat.steps == 5 * (1 + 2) + 5  # the first best, two stale iterations; the holdout
     runs = [search_gains(_KnownModel(), policy, start, STARTS, np.random.default_rng(4),  # type: ignore[arg-type]
                          PolicySearchSettings(horizon=10)) for _ in range(2)]  # fmt: skip
     assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1] == runs[1][1]

@@ -61,6 +61,8 @@ class PolicySearchSettings:
     """The Gaussian's first std around the current gains."""
     min_std: float = 0.05
     """Least std after a refit."""
+    patience: int = 2
+    """Stop after this many iterations in a row that found nothing better."""
     holdout: bool = True
     """Keep the current gains unless the search's best beats them on fresh draws too."""
 
@@ -70,6 +72,7 @@ class PolicySearchSettings:
         check_int(self.candidates, "candidates", minimum=3, maximum=100_000)
         check_int(self.iterations, "iterations", minimum=1, maximum=1000)
         check_int(self.elites, "elites", minimum=1, maximum=self.candidates)
+        check_int(self.patience, "patience", minimum=1, maximum=1000)
         check_real(self.init_std, "init_std", low=0.0, high=100.0)
         check_real(self.min_std, "min_std", low=0.0, high=100.0)
 
@@ -160,7 +163,8 @@ def search_gains(
     those same draws (PEGASUS, Ng & Jordan 2000: a fixed sample of scenarios makes the
     scores comparable across iterations, so the best is not the luckiest draw). Each
     iteration scores the current mean, the best so far and ``candidates - 2`` draws
-    around the mean, and refits the Gaussian to the ``elites``. Ties keep the earlier
+    around the mean, and refits the Gaussian to the ``elites``; the search stops early
+    once ``patience`` iterations in a row found nothing better. Ties keep the earlier
     candidate: the current gains stay unless something scores higher. With
     ``settings.holdout`` the winner must then beat the current gains again on fresh
     draws (the best of many on one sample is flattered by it), by more than
@@ -176,14 +180,18 @@ def search_gains(
     best, best_value = gains.copy(), -np.inf
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
+    stale = 0  # iterations in a row without a better best
     for _ in range(c.iterations):
+        if stale >= c.patience:
+            break
         candidates = mean + std * rng.standard_normal((c.candidates, *policy.shape))
         candidates[0], candidates[1] = mean, best
         values = policy_returns(model, policy, candidates, picked, normals)
         values = np.where(np.isnan(values), -np.inf, values)  # a diverged roll-out loses
         order = np.argsort(-values, kind="stable")
+        stale += 1
         if values[order[0]] > best_value:
-            best, best_value = candidates[order[0]].copy(), float(values[order[0]])
+            best, best_value, stale = candidates[order[0]].copy(), float(values[order[0]]), 0
         elite = candidates[order[: c.elites]]
         mean, std = elite.mean(axis=0), np.maximum(elite.std(axis=0), c.min_std)
     if not c.holdout:

@@ -1,9 +1,10 @@
-"""Goals 1-2 of issue 46 at their last checkpoint: ``GPQAgent(env, seed=s, planner="cem")``
-after 5,000 learning steps, the mean greedy return of 10 episodes
-(:func:`geoq.experiments.control.evaluation.evaluate_agent`, seed 10,000), one line per
-``ENV:SEED`` job, with the learning's and the evaluation's wall time::
+"""Goals 1-2 of issue 46 at their last checkpoint: ``GPQAgent(env, seed=s, planner=P)``
+(``--planner``, ``cem`` by default) after 5,000 learning steps, the mean greedy return
+of 10 episodes (:func:`geoq.experiments.control.evaluation.evaluate_agent`, seed
+10,000), one line per ``ENV:SEED`` job, with the learning's and the evaluation's wall
+time::
 
-    python research/planner_5k.py InvertedPendulum-v5:0 Reacher-v5:0 ...
+    python research/planner_5k.py InvertedPendulum-v5:0 Reacher-v5:0 ... [--planner policy]
 
 Needs the ``mujoco`` extra for Gymnasium's MuJoCo tasks.
 """
@@ -23,12 +24,13 @@ def main() -> None:
     ap.add_argument("jobs", nargs="*", metavar="ENV:SEED")
     ap.add_argument("--steps", type=int, default=5000)
     ap.add_argument("--episodes", type=int, default=10)
+    ap.add_argument("--planner", default="cem")
     a = ap.parse_args()
     warnings.simplefilter("ignore")  # the evidence fits' bound warnings
     for job in a.jobs:
         env_id, seed = job.rsplit(":", 1)
         start = time.perf_counter()
-        agent = GPQAgent(env_id, seed=int(seed), planner="cem")
+        agent = GPQAgent(env_id, seed=int(seed), planner=a.planner)
         agent.learn(a.steps)
         learned = time.perf_counter()
         ev = evaluate_agent(agent, env_id, a.episodes, seed=10_000)

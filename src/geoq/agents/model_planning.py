@@ -78,12 +78,13 @@ class ModelPlanning:
         return self.mode != "off" and self.model.fitted
 
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
-        """Take in the buffer's newest transition: a fit when one is due (``policy``: at
-        the searches, :meth:`start_episode`), else a stream."""
-        if self.mode == "off":
+        """Take in the buffer's newest transition: a fit when one is due, else a stream
+        (``policy``: neither; the model is refitted at each search, :meth:`start_episode`,
+        and read nowhere else)."""
+        if self.mode in ("off", "policy"):
             return
         n = len(buffer)
-        if n >= self.next_fit and self.mode != "policy":
+        if n >= self.next_fit:
             self._fit(buffer, rng)
         elif self.model.fitted:
             self.model.observe(*(column[-1] for column in buffer.arrays(last=1)))

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
 
 from geoq.models import (
     CEMPlanner,
@@ -15,21 +14,9 @@ from geoq.models import (
     rollout_returns,
 )
 
-DT = 0.1
-A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
-B_SYS = np.array([[0.0], [DT]])
-Q_COST, R_COST = np.diag([1.0, 0.1]), np.array([[0.01]])
-
-
-def _lqr() -> tuple[np.ndarray, np.ndarray]:
-    """``P`` (cost-to-go ``s^T P s``) and the gain ``K`` (``a = -K s``), undiscounted."""
-    P = scipy.linalg.solve_discrete_are(A_SYS, B_SYS, Q_COST, R_COST)
-    K = np.linalg.solve(R_COST + B_SYS.T @ P @ B_SYS, B_SYS.T @ P @ A_SYS)
-    return P, K
-
-
-def _reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
-    return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
+from ._lqr import A_SYS, B_SYS, Everywhere
+from ._lqr import lqr as _lqr
+from ._lqr import reward as _reward
 
 
 def _exact_q(P: np.ndarray):
@@ -85,18 +72,11 @@ def test_through_a_learned_model_the_first_action_approaches_the_lqr_action() ->
         assert abs(a[0] - lqr[0]) < 0.05 * (1.0 + abs(lqr[0])), (a, lqr)
 
 
-class _Everywhere:
-    """Support that has seen every state."""
-
-    def distance(self, S: np.ndarray) -> np.ndarray:
-        return np.zeros(len(S))
-
-
 class _LinearModel:
     """The double integrator as a model: exact means, no uncertainty (a known model)."""
 
     obs_dim = 2
-    support = _Everywhere()
+    support = Everywhere()
     reward_range = np.array([-100.0, 0.0])
 
     def draw(self, S: np.ndarray, A: np.ndarray, normals: np.ndarray) -> tuple:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,22 +17,11 @@ from geoq.models import (
     search_gains,
 )
 
-DT = 0.1
-A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
-B_SYS = np.array([[0.0], [DT]])
-Q_COST, R_COST = np.diag([1.0, 0.1]), np.array([[0.01]])
+from ._lqr import A_SYS, B_SYS, Everywhere
+from ._lqr import lqr as _lqr
+from ._lqr import reward as _reward
+
 STARTS = np.array([[1.0, 0.0], [-0.5, 1.0], [0.3, -1.0], [-1.0, -0.5]])
-
-
-def _lqr() -> tuple[np.ndarray, np.ndarray]:
-    """``P`` (cost-to-go ``s^T P s``) and the gain ``K`` (``a = -K s``), undiscounted."""
-    P = scipy.linalg.solve_discrete_are(A_SYS, B_SYS, Q_COST, R_COST)
-    K = np.linalg.solve(R_COST + B_SYS.T @ P @ B_SYS, B_SYS.T @ P @ A_SYS)
-    return P, K
-
-
-def _reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
-    return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
 
 
 def _true_return(policy: LinearFeedback, gains: np.ndarray, starts: np.ndarray, T: int) -> float:
@@ -46,16 +34,11 @@ def _true_return(policy: LinearFeedback, gains: np.ndarray, starts: np.ndarray, 
     return total / len(starts)
 
 
-class _Everywhere:
-    def distance(self, S: np.ndarray) -> np.ndarray:
-        return np.zeros(len(S))
-
-
 class _KnownModel:
     """The double integrator as a model, with a made-up std ``0.01`` on each state change."""
 
     obs_dim = 2
-    support = _Everywhere()
+    support = Everywhere()
     reward_range = np.array([-1e6, 0.0])
 
     def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:
@@ -98,11 +81,13 @@ def test_policy_returns_are_each_candidates_own_roll_outs_on_the_same_draws() ->
     for c in range(3):
         alone = rollout_returns(model, STARTS, lambda t, S, rows, c=c: policy.act(gains[c], S), 25,  # type: ignore[arg-type]
                                 gamma=1.0, noise=normals)  # fmt: skip
-        assert got[c] == pytest.approx(alone.mean(), rel=1e-12)
+        np.testing.assert_allclose(got[c], alone, rtol=1e-12)
     # with no noise at all, the mean is the true system's return (a brute-force loop)
     quiet = policy_returns(model, policy, gains, STARTS, np.zeros_like(normals))  # type: ignore[arg-type]
     for c in range(3):
-        assert quiet[c] == pytest.approx(_true_return(policy, gains[c], STARTS, 25), rel=1e-12)
+        assert quiet[c].mean() == pytest.approx(
+            _true_return(policy, gains[c], STARTS, 25), rel=1e-12
+        )
 
 
 def _check_near_lqr(policy: LinearFeedback, gains: np.ndarray, T: int) -> None:
@@ -181,7 +166,7 @@ class _Gamble:
     return is the same, and only luck tells them apart on a sample."""
 
     obs_dim = 1
-    support = _Everywhere()
+    support = Everywhere()
     reward_range = np.array([-1e6, 1e6])
 
     def predict_mean(self, S: np.ndarray, A: np.ndarray) -> np.ndarray:

@@ -33,7 +33,6 @@ __all__ = [
     "HOLDOUT_SE",
     "LinearFeedback",
     "PolicySearchSettings",
-    "particle_returns",
     "policy_returns",
     "search_gains",
 ]
@@ -122,21 +121,9 @@ def policy_returns(
     starts: FloatArray,
     normals: FloatArray,
 ) -> FloatArray:
-    """Mean undiscounted model return ``[C]`` of ``C`` gains ``[C, d_a, d_s + 1]``, each
-    from every start ``[P, d_s]``, over ``T`` steps of sampled roll-outs whose state
-    changes take the standard normals ``normals`` [T, P, d_s] (the same for every
-    candidate)."""
-    return particle_returns(model, policy, gains, starts, normals).mean(axis=1)
-
-
-def particle_returns(
-    model: GPDynamicsModel,
-    policy: LinearFeedback,
-    gains: FloatArray,
-    starts: FloatArray,
-    normals: FloatArray,
-) -> FloatArray:
-    """:func:`policy_returns` before the mean: each particle's return ``[C, P]``."""
+    """Undiscounted model returns ``[C, P]`` of ``C`` gains ``[C, d_a, d_s + 1]``, each from
+    every start ``[P, d_s]``, over ``T`` steps of sampled roll-outs whose state changes
+    take the standard normals ``normals`` [T, P, d_s] (the same for every candidate)."""
     C, P = gains.shape[0], starts.shape[0]
     T = normals.shape[0]
     flat_starts = np.tile(starts, (C, 1))  # candidate c's particles: rows c P .. (c + 1) P - 1
@@ -158,8 +145,8 @@ def search_gains(
     settings: PolicySearchSettings | None = None,
 ) -> tuple[FloatArray, float]:
     """The best gains ``[d_a, d_s + 1]`` found from ``gains`` by the cross-entropy method,
-    and their score (:func:`policy_returns`). The search draws ``particles`` starts from
-    ``starts`` [N, d_s] and the roll-outs' normals once, and scores every candidate on
+    and their score (the mean of :func:`policy_returns`). The search draws ``particles``
+    starts from ``starts`` [N, d_s] and the roll-outs' normals once, and scores every candidate on
     those same draws (PEGASUS, Ng & Jordan 2000: a fixed sample of scenarios makes the
     scores comparable across iterations, so the best is not the luckiest draw). Each
     iteration scores the current mean, the best so far and ``candidates - 2`` draws
@@ -186,7 +173,7 @@ def search_gains(
             break
         candidates = mean + std * rng.standard_normal((c.candidates, *policy.shape))
         candidates[0], candidates[1] = mean, best
-        values = policy_returns(model, policy, candidates, picked, normals)
+        values = policy_returns(model, policy, candidates, picked, normals).mean(axis=1)
         values = np.where(np.isnan(values), -np.inf, values)  # a diverged roll-out loses
         order = np.argsort(-values, kind="stable")
         stale += 1
@@ -198,7 +185,7 @@ def search_gains(
         return best, best_value
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
-    fresh = particle_returns(model, policy, np.stack([gains, best]), picked, normals)
+    fresh = policy_returns(model, policy, np.stack([gains, best]), picked, normals)
     gain = fresh[1] - fresh[0]  # paired: the same starts and draws [P]
     se = gain.std(ddof=1) / np.sqrt(len(gain)) if len(gain) > 1 else 0.0
     if gain.mean() > HOLDOUT_SE * se:

@@ -1,0 +1,31 @@
+"""A double integrator with quadratic cost and its LQR solution (scipy's Riccati
+equation): the oracle the planner's and the policy search's tests share."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+DT = 0.1
+A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
+B_SYS = np.array([[0.0], [DT]])
+Q_COST, R_COST = np.diag([1.0, 0.1]), np.array([[0.01]])
+
+
+def lqr() -> tuple[np.ndarray, np.ndarray]:
+    """``P`` (cost-to-go ``s^T P s``) and the gain ``K`` (``a = -K s``), undiscounted."""
+    P = scipy.linalg.solve_discrete_are(A_SYS, B_SYS, Q_COST, R_COST)
+    K = np.linalg.solve(R_COST + B_SYS.T @ P @ B_SYS, B_SYS.T @ P @ A_SYS)
+    return P, K
+
+
+def reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """``-s^T Q s - a^T R a`` of states ``[P, 2]`` and actions ``[P, 1]``."""
+    return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
+
+
+class Everywhere:
+    """A support that has seen every state."""
+
+    def distance(self, S: np.ndarray) -> np.ndarray:
+        return np.zeros(len(S))

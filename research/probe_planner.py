@@ -2,7 +2,7 @@
 
 Not a speed benchmark: the measurement behind the design notes' section "Planning
 through a learned GP model in the agent". The agent is ``GPQAgent(env_id, seed=seed,
-planner=mode)`` (``--mode cem`` or ``cem-q``) with every other setting its default;
+planner=mode)`` (``--mode cem``, ``cem-q`` or ``policy``) with every other setting its default;
 ``--planner`` overrides fields of :class:`geoq.models.PlannerSettings` (for both the
 training and the greedy plans), ``--model`` those of :class:`geoq.models.ModelSettings`;
 ``--save DIR`` keeps the agent of every checkpoint (for ``probe_model_fixes.py``).
@@ -52,14 +52,15 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=500)
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--planner", default="{}", help="PlannerSettings fields as JSON")
-    ap.add_argument("--mode", default="cem", choices=["cem", "cem-q"])
+    ap.add_argument("--mode", default="cem", choices=["cem", "cem-q", "policy"])
     ap.add_argument("--save", default=None, help="save the agent at each checkpoint in DIR")
     ap.add_argument("--model", default="{}", help="ModelSettings fields as JSON")
     a = ap.parse_args()
     warnings.simplefilter("ignore")  # the evidence fits' bound warnings, one per output
     agent = GPQAgent(a.env, seed=a.seed, planner=a.mode)
-    agent.planning.model = GPDynamicsModel(agent.obs_dim, agent.action_dim,
-                                           ModelSettings(**json.loads(a.model)))  # fmt: skip
+    if json.loads(a.model):  # else the agent's own (``policy``'s differs from the default)
+        agent.planning.model = GPDynamicsModel(agent.obs_dim, agent.action_dim,
+                                               ModelSettings(**json.loads(a.model)))  # fmt: skip
     settings = PlannerSettings(**json.loads(a.planner))
     for planner in (agent.planning.training, agent.planning.greedy):
         planner.settings = settings

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from geoq.models import GPDynamicsModel, ModelSettings
+
 DT = 0.1
 A_SYS = np.array([[1.0, DT], [0.0, 1.0]])  # a double integrator: position, velocity
 B_SYS = np.array([[0.0], [DT]])
@@ -22,6 +24,17 @@ def lqr() -> tuple[np.ndarray, np.ndarray]:
 def reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
     """``-s^T Q s - a^T R a`` of states ``[P, 2]`` and actions ``[P, 1]``."""
     return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
+
+
+def learned_model(rng: np.random.Generator, action_bound: float) -> GPDynamicsModel:
+    """A GP model (150 basis vectors) fitted to 400 transitions of states uniform on
+    ``[-2, 2]^2`` and actions uniform on ``[-action_bound, action_bound]``."""
+    S = rng.uniform(-2.0, 2.0, size=(400, 2))
+    A = rng.uniform(-action_bound, action_bound, size=(400, 1))
+    S2 = S @ A_SYS.T + A @ B_SYS.T
+    return GPDynamicsModel(2, 1, ModelSettings(max_bv=150)).fit(
+        S, A, reward(S, A), S2, np.zeros(400), rng
+    )
 
 
 class Everywhere:

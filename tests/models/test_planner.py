@@ -8,13 +8,12 @@ import pytest
 from geoq.models import (
     CEMPlanner,
     GPDynamicsModel,
-    ModelSettings,
     PlannerSettings,
     model_returns,
     rollout_returns,
 )
 
-from ._lqr import A_SYS, B_SYS, Everywhere
+from ._lqr import A_SYS, B_SYS, Everywhere, learned_model
 from ._lqr import lqr as _lqr
 from ._lqr import reward as _reward
 
@@ -54,12 +53,7 @@ def test_the_first_action_approaches_the_lqr_action_on_the_exact_system(horizon:
 def test_through_a_learned_model_the_first_action_approaches_the_lqr_action() -> None:
     P, K = _lqr()
     rng = np.random.default_rng(1)
-    S = rng.uniform(-2.0, 2.0, size=(400, 2))
-    A = rng.uniform(-10.0, 10.0, size=(400, 1))
-    S2 = S @ A_SYS.T + A @ B_SYS.T
-    model = GPDynamicsModel(2, 1, ModelSettings(max_bv=150)).fit(
-        S, A, _reward(S, A), S2, np.zeros(400), rng
-    )
+    model = learned_model(rng, 10.0)
     settings = PlannerSettings(horizon=3, samples=300, iterations=12, elites=30, min_std=1e-4)
     for s0 in (np.array([1.0, 0.0]), np.array([-0.5, 1.0])):
         planner = CEMPlanner(np.array([-10.0]), np.array([10.0]), settings)

@@ -8,16 +8,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from geoq.models import (
-    GPDynamicsModel,
     LinearFeedback,
-    ModelSettings,
     PolicySearchSettings,
     policy_returns,
     rollout_returns,
     search_gains,
 )
 
-from ._lqr import A_SYS, B_SYS, Everywhere
+from ._lqr import A_SYS, B_SYS, Everywhere, learned_model
 from ._lqr import lqr as _lqr
 from ._lqr import reward as _reward
 
@@ -112,12 +110,7 @@ def test_the_search_through_the_exact_system_finds_the_lqr_policy() -> None:
 
 def test_the_search_through_a_learned_model_finds_the_lqr_policy() -> None:
     rng = np.random.default_rng(2)
-    S = rng.uniform(-2.0, 2.0, size=(400, 2))
-    A = rng.uniform(-20.0, 20.0, size=(400, 1))
-    S2 = S @ A_SYS.T + A @ B_SYS.T
-    model = GPDynamicsModel(2, 1, ModelSettings(max_bv=150)).fit(
-        S, A, _reward(S, A), S2, np.zeros(400), rng
-    )
+    model = learned_model(rng, 20.0)
     policy = _policy()
     search = PolicySearchSettings(horizon=100, particles=4, candidates=48, iterations=30, elites=6,
                                   patience=30)  # fmt: skip

@@ -141,9 +141,8 @@ def _settings_from(stored: list[float]) -> ModelSettings:
     outlier test, 6 before the standardised support)."""
     if len(stored) not in (4, 5, 6, 7):
         raise ValueError(f"settings must hold 4 to 7 numbers, got {len(stored)}")
-    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised = (*stored, 0.0, 0.0, 0.0)[
-        :7
-    ]
+    padded = (*stored, 0.0, 0.0, 0.0)[:7]  # the settings an older archive did not have: off
+    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised = padded
     for name, flag in (("linear_mean", linear_mean), ("standardised_support", standardised)):
         if flag not in (0.0, 1.0):
             raise ValueError(f"settings' {name} must be 0 or 1, got {flag}")

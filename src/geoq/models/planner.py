@@ -194,7 +194,8 @@ def rollout_returns(
     a particle that has ended or halted for sure is not stepped further. ``noise``: None
     follows the model's means; a generator draws the state changes' standard normals
     ``[P, d_s]`` each step while any particle runs (every particle's, so the stream does
-    not depend on which are running); an array ``[horizon, P, d_s]`` gives them (common random numbers).
+    not depend on which are running); an array ``[horizon, P, d_s]`` gives them (common
+    random numbers).
     ``value`` (None: 0) is asked about the states after the horizon and the actions
     ``act(horizon, S, rows)``; ``value_floor`` is its least."""
     P, d = starts.shape

@@ -124,18 +124,22 @@ POLICY = {"planner": "policy", "warmup_steps": 40, "n_candidates": 5, "explore_m
           "policy_horizon": 40}  # fmt: skip
 
 
-def _policy_agent(seed: int = 0) -> GPQAgent:
-    return GPQAgent(PointToGoal(), seed=seed, **POLICY)
+POLICY_PLANNERS = pytest.mark.parametrize("planner", ["policy", "policy-net"])
 
 
-def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over() -> None:
-    agent = _policy_agent()
+def _policy_agent(seed: int = 0, planner: str = "policy") -> GPQAgent:
+    return GPQAgent(PointToGoal(), seed=seed, **(POLICY | {"planner": planner}))
+
+
+@POLICY_PLANNERS
+def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner: str) -> None:
+    agent = _policy_agent(planner=planner)
     assert GPQAgent(PointToGoal(), planner="policy").config.policy_horizon == 1000  # no limit
     assert GPQAgent("Pendulum-v1", planner="policy").config.policy_horizon == 200
     assert GPQAgent("Pendulum-v1", planner="policy", policy_horizon=7).config.policy_horizon == 7
     agent.learn(39)
     assert not agent.planning.active and not agent.planning.model.fitted
-    agent = _policy_agent().learn(239)
+    agent = _policy_agent(planner=planner).learn(239)
     feedback = agent.planning.feedback
     starts = len(agent.episodes) + 1  # the unfinished episode's start too
     assert agent.planning.active and len(feedback.starts) == starts
@@ -156,8 +160,9 @@ class PointToCentre(PointToGoal):
         return obs, -float(obs[0] ** 2), False, self._t >= 40, {}
 
 
-def test_the_policy_learns_to_regulate_the_point() -> None:
-    agent = GPQAgent(PointToCentre(), seed=1, **POLICY).learn(300)
+@POLICY_PLANNERS
+def test_the_policy_learns_to_regulate_the_point(planner: str) -> None:
+    agent = GPQAgent(PointToCentre(), seed=1, **(POLICY | {"planner": planner})).learn(300)
     for start in (-1.0, -0.5, 0.6, 1.0):
         env = PointToCentre()
         obs, _ = env.reset(seed=0, options={"state": [start]})
@@ -169,8 +174,9 @@ def test_the_policy_learns_to_regulate_the_point() -> None:
         assert max(path[int(np.ceil(abs(start) / 0.1)) :]) < 0.1, (start, path)
 
 
-def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path) -> None:
-    a, b = _policy_agent(3).learn(150), _policy_agent(3).learn(150)
+@POLICY_PLANNERS
+def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, planner: str) -> None:
+    a, b = _policy_agent(3, planner).learn(150), _policy_agent(3, planner).learn(150)
     for x, y in zip(a.buffer.arrays(), b.buffer.arrays(), strict=True):
         assert np.array_equal(x, y)
     a.save(tmp_path / "a.npz")
@@ -178,6 +184,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path) -> N
     ours, theirs = a.planning.feedback, loaded.planning.feedback
     assert np.array_equal(ours.gains, theirs.gains) and np.array_equal(ours.starts, theirs.starts)
     assert (ours.value, ours.searched_at) == (theirs.value, theirs.searched_at)
+    assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
     a.learn(120)
     loaded.learn(120)
     for x, y in zip(a.buffer.arrays(), loaded.buffer.arrays(), strict=True):

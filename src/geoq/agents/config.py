@@ -53,8 +53,8 @@ Prior = Literal["auto", "midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
-Planner = Literal["off", "cem", "cem-q", "policy"]
-PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q", "policy")
+Planner = Literal["off", "cem", "cem-q", "policy", "policy-net"]
+PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q", "policy", "policy-net")
 #: ``policy_horizon``'s most when the task's time limit sets it.
 POLICY_HORIZON_CAP = 1000
 Hyperparameters = Literal["auto", "rule", "evidence"]

@@ -31,7 +31,7 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq.agents.buffer import TransitionBuffer
 from geoq.agents.config import GPQConfig
-from geoq.agents.policy_planning import FeedbackPlanning
+from geoq.agents.policy_planning import NET_MODEL, FeedbackPlanning
 from geoq.agents.state import LearningState
 from geoq.gp import SparseOnlineGP
 from geoq.models import CEMPlanner, GPDynamicsModel, ModelSettings, PlannerSettings, model_returns
@@ -59,21 +59,25 @@ class ModelPlanning:
 
     def __init__(self, config: GPQConfig, obs_dim: int, low: FloatArray, high: FloatArray):
         self.mode, self.window = config.planner, config.window
+        self.policy_mode = self.mode in ("policy", "policy-net")
         self.first_fit = max(config.warmup_steps, 2)
         # a policy's long roll-outs must stop where any state input leaves the data
-        settings = ModelSettings(standardised_support=self.mode == "policy")
+        settings = ModelSettings(standardised_support=self.policy_mode)
+        if self.mode == "policy-net":
+            settings = NET_MODEL
         self.model = GPDynamicsModel(obs_dim, low.shape[0], settings)
         self.training = CEMPlanner(low, high, PlannerSettings())
         self.greedy = CEMPlanner(low, high, PlannerSettings())
         assert config.policy_horizon is not None  # resolved by GPQConfig.for_dims
-        self.feedback = FeedbackPlanning(obs_dim, low, high, config.policy_horizon)
+        self.feedback = FeedbackPlanning(obs_dim, low, high, config.policy_horizon,
+                                         net=self.mode == "policy-net")  # fmt: skip
         self.next_fit = self.first_fit
 
     @property
     def active(self) -> bool:
         """Whether actions are planned now (a planner chosen and a model fitted; with
         ``policy``, a policy searched)."""
-        if self.mode == "policy":
+        if self.policy_mode:
             return self.feedback.policy is not None
         return self.mode != "off" and self.model.fitted
 
@@ -98,19 +102,20 @@ class ModelPlanning:
         """A new episode from ``s`` [1, d_s]: the training plan's warm start is forgotten;
         with ``policy``, ``s`` joins the starts, and a search is made if one is due."""
         self.training.reset()
-        if self.mode != "policy":
+        if not self.policy_mode:
             return
         self.feedback.starts = np.vstack([self.feedback.starts, s])
         n = len(buffer)
         if n >= self.first_fit and self.feedback.due(n):
-            self._fit(buffer, rng)
+            if self.mode == "policy" or not self.model.fitted:
+                self._fit(buffer, rng)
             self.feedback.search(self.model, n, rng)
 
     def action(
         self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None
     ) -> FloatArray:
         """The planned action ``[1, d_a]`` at ``s`` [1, d_s]; ``rng`` None: a greedy plan."""
-        if self.mode == "policy":
+        if self.policy_mode:
             return self.feedback.action(s, rng)
         planner = self.training if rng is not None else self.greedy
         if rng is None:
@@ -141,7 +146,7 @@ class ModelPlanning:
                 plans[f"plan_{name}"] = planner.mean
             if planner.elites is not None:
                 plans[f"elites_{name}"] = planner.elites
-        if self.mode == "policy":
+        if self.policy_mode:
             plans = self.feedback.to_arrays()
         return self.model.to_arrays() | plans | {"next_fit": np.array(self.next_fit)}
 
@@ -159,7 +164,7 @@ class ModelPlanning:
         if model.fitted != (self.next_fit > self.first_fit) or self.next_fit < self.first_fit:
             raise ValueError(f"next_fit {self.next_fit} does not fit a model fitted={model.fitted}")
         self.model = model
-        if self.mode == "policy":
+        if self.policy_mode:
             self.feedback.restore(a)
         for name, planner in (("training", self.training), ("greedy", self.greedy)):
             steps = (planner.settings.horizon + 1, len(planner.low))

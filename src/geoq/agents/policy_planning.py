@@ -19,26 +19,44 @@ from typing import Any
 import numpy as np
 
 from geoq._typing import FloatArray
-from geoq.models import GPDynamicsModel, LinearFeedback, PolicySearchSettings, search_gains
+from geoq.models import (
+    GPDynamicsModel,
+    LinearFeedback,
+    MLPFeedback,
+    ModelSettings,
+    PolicyGradientSettings,
+    PolicySearchSettings,
+    search_gains,
+    search_policy,
+)
 
-__all__ = ["EXPLORATION", "SEARCH_EVERY", "FeedbackPlanning"]
+__all__ = ["EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "FeedbackPlanning"]
 
 #: Least number of new transitions between two searches.
 SEARCH_EVERY = 100
 #: Std of the training actions' noise, in half-ranges of the action box.
 EXPLORATION = 0.1
+#: The model a ``policy-net`` search reads: the support in standardised states,
+#: calibrated by the newest fifth of the data (a new episode's states lie farther from
+#: the old ones than a trajectory's steps from each other), and the rare jumps at a
+#: joint's stop left out of the state changes' GPs (docs/design-notes.md, part four).
+NET_MODEL = ModelSettings(standardised_support=True, support_holdout=0.2, outlier_mads=6.0)
 
 
 class FeedbackPlanning:
     """The episodes' start states ``starts`` [N, d_s], the policy (None before the first
-    search), its ``gains`` [d_a, d_s + 1] and score ``value`` (nan before), and
-    ``searched_at`` (transitions stored at the last search)."""
+    search; ``net``: an :class:`~geoq.models.MLPFeedback`, else a
+    :class:`~geoq.models.LinearFeedback`), its weights ``gains`` ([d_a, d_s + 1], or the
+    network's ``[n_params]``) and score ``value`` (nan before), and ``searched_at``
+    (transitions stored at the last search)."""
 
-    def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int):
-        self.low, self.high = low, high
+    def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
+                 net: bool = False):  # fmt: skip
+        self.low, self.high, self.net = low, high, net
         self.settings = PolicySearchSettings(horizon=horizon)
+        self.gradient_settings = PolicyGradientSettings(horizon=horizon)
         self.starts = np.zeros((0, obs_dim))
-        self.policy: LinearFeedback | None = None
+        self.policy: LinearFeedback | MLPFeedback | None = None
         self.gains = np.zeros((low.shape[0], obs_dim + 1))
         self.value, self.searched_at = float("nan"), 0
 
@@ -46,13 +64,23 @@ class FeedbackPlanning:
         """Whether a search is due with ``n`` transitions stored."""
         return self.policy is None or n - self.searched_at >= SEARCH_EVERY
 
+    def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
+        kind = MLPFeedback if self.net else LinearFeedback
+        return kind(self.low, self.high, center, scale)
+
     def search(self, model: GPDynamicsModel, n: int, rng: np.random.Generator) -> None:
         """Search the gains through ``model`` (fitted on ``n`` transitions), from the current."""
         if self.policy is None:  # the standardisation is fixed at the first search
             d = model.obs_dim
-            self.policy = LinearFeedback(self.low, self.high, model.x_mean[:d], model.x_scale[:d])
-        self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts, rng,
-                                              self.settings)  # fmt: skip
+            self.policy = self._make(model.x_mean[:d], model.x_scale[:d])
+            if isinstance(self.policy, MLPFeedback):
+                self.gains = self.policy.initial(rng)
+        if isinstance(self.policy, MLPFeedback):
+            self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
+                                                   rng, self.gradient_settings)  # fmt: skip
+        else:
+            self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
+                                                  rng, self.settings)  # fmt: skip
         self.searched_at = n
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
@@ -86,9 +114,10 @@ class FeedbackPlanning:
         self.starts = starts
         if "policy_gains" not in a:
             return
-        policy = LinearFeedback(self.low, self.high, a["policy_center"], a["policy_scale"])
+        policy = self._make(a["policy_center"], a["policy_scale"])
         gains = np.asarray(a["policy_gains"], dtype=np.float64)
-        if gains.shape != policy.shape or not np.all(np.isfinite(gains)):
-            raise ValueError(f"policy_gains must be finite of shape {policy.shape}")
+        shape = (policy.n_params,) if isinstance(policy, MLPFeedback) else policy.shape
+        if gains.shape != shape or not np.all(np.isfinite(gains)):
+            raise ValueError(f"policy_gains must be finite of shape {shape}")
         self.policy, self.gains = policy, gains
         self.value, self.searched_at = float(a["policy_value"]), int(a["policy_searched_at"])

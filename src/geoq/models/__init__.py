@@ -10,6 +10,12 @@ the model over a long horizon (PILCO's loop).
 
 from geoq.models.dynamics import GPDynamicsModel, ModelSettings
 from geoq.models.planner import CEMPlanner, PlannerSettings, model_returns, rollout_returns
+from geoq.models.policy_gradient import (
+    MLPFeedback,
+    PolicyGradientSettings,
+    search_policy,
+    soft_return,
+)
 from geoq.models.policy_search import (
     LinearFeedback,
     PolicySearchSettings,
@@ -21,11 +27,15 @@ __all__ = [
     "CEMPlanner",
     "GPDynamicsModel",
     "LinearFeedback",
+    "MLPFeedback",
     "ModelSettings",
     "PlannerSettings",
+    "PolicyGradientSettings",
     "PolicySearchSettings",
     "model_returns",
     "policy_returns",
     "rollout_returns",
     "search_gains",
+    "search_policy",
+    "soft_return",
 ]

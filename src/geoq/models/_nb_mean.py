@@ -16,7 +16,7 @@ from numba import njit
 
 from geoq._typing import FloatArray, IntArray
 
-__all__ = ["posterior_means"]
+__all__ = ["posterior_means", "posterior_means_and_gradients"]
 
 #: A basis vector this far (squared, in length-scales) adds less than ``e^-30 = 1e-13``
 #: of its weight: skipped, which spares most of the exponentials where length-scales
@@ -50,3 +50,40 @@ def posterior_means(
                 if d2 < _FAR:
                     acc += alpha[i] * math.exp(-0.5 * d2)
             out[p, j] = variance[j] * acc
+
+
+@njit(cache=True, fastmath=True)
+def posterior_means_and_gradients(
+    X: FloatArray, inv_ls: FloatArray, basis: FloatArray, offsets: IntArray,
+    alpha: FloatArray, variance: FloatArray, out: FloatArray, grad: FloatArray,
+) -> None:  # pragma: no cover - compiled  # fmt: skip
+    """:func:`posterior_means` into ``out`` [P, J] and their gradients ``grad`` [P, J, D]
+    with respect to ``X``: ``d mean[p, j] / d X[p, k] = -variance_j inv_ls[j, k] sum_i
+    alpha_ji e_ji (z_k - b_jik)`` with ``z = X[p] inv_ls[j]`` and ``e_ji`` the term's
+    exponential (the same terms dropped)."""
+    P, D = X.shape
+    J = inv_ls.shape[0]
+    z = X[0].copy()
+    g = X[0].copy()
+    for p in range(P):
+        x = X[p]
+        for j in range(J):
+            ls = inv_ls[j]
+            for k in range(D):
+                z[k] = x[k] * ls[k]
+                g[k] = 0.0
+            acc = 0.0
+            for i in range(offsets[j], offsets[j + 1]):
+                b = basis[i]
+                d2 = 0.0
+                for k in range(D):
+                    diff = z[k] - b[k]
+                    d2 += diff * diff
+                if d2 < _FAR:
+                    w = alpha[i] * math.exp(-0.5 * d2)
+                    acc += w
+                    for k in range(D):
+                        g[k] -= w * (z[k] - b[k])
+            out[p, j] = variance[j] * acc
+            for k in range(D):
+                grad[p, j, k] = variance[j] * g[k] * ls[k]

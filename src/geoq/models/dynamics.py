@@ -58,12 +58,13 @@ from scipy.stats import median_abs_deviation
 from geoq._io import ArchiveError
 from geoq._threads import single_blas_thread, single_blas_thread_for_small_batches
 from geoq._typing import FloatArray
-from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
+from geoq._validation import as_float_matrix, as_float_vector, check_int
 from geoq.gp import NumericalWarning, SparseOnlineGP
 from geoq.gp.evidence import fit_squared_exponential
 from geoq.gp.numerics import robust_cholesky
 from geoq.kernels.stationary import SquaredExponential
-from geoq.models._nb_mean import posterior_means
+from geoq.models._nb_mean import posterior_means, posterior_means_and_gradients
+from geoq.models.model_settings import ModelSettings, settings_from
 from geoq.models.support import StateSupport
 
 __all__ = ["GPDynamicsModel", "ModelSettings"]
@@ -73,38 +74,6 @@ _CONSTANT = 1e-12
 #: Least noise variance of a standardised output (a deterministic simulator's outputs
 #: would otherwise ask the Cholesky factors for an exactly interpolating GP).
 _NOISE_FLOOR = 1e-6
-
-
-@dataclass(frozen=True)
-class ModelSettings:
-    """How each output's GP is made."""
-
-    max_bv: int = 200
-    """Basis-vector budget of each output's sparse online GP."""
-    fit_points: int = 300
-    """Transitions the evidence is computed on (``O(fit_points^3)`` per evaluation)."""
-    restarts: int = 1
-    """Further starts of each evidence fit."""
-    tol: float = 1e-6
-    """Relative novelty a transition needs to become a basis vector (0 with ``max_bv``
-    at least the transitions' count: every one is kept, the exact GP)."""
-    linear_mean: bool = False
-    """Each output's prior mean a linear function of the inputs, fitted by least squares
-    (the GP learns what it leaves); False: the data's mean."""
-    outlier_mads: float = 0.0
-    """A transition whose state change lies more than this many robust deviations (MADs)
-    from the least-squares line is left out of the state changes' GPs (0: none is)."""
-    standardised_support: bool = False
-    """Measure the support in the states standardised by the data, every input counting
-    alike; False: in the outputs' shortest length-scales, so that an input no output
-    depends on counts for nothing (module docstring)."""
-
-    def __post_init__(self) -> None:
-        check_int(self.max_bv, "max_bv", minimum=1, maximum=5000)
-        check_int(self.fit_points, "fit_points", minimum=2, maximum=5000)
-        check_int(self.restarts, "restarts", minimum=0, maximum=100)
-        check_real(self.tol, "tol", low=0.0, high=1.0)
-        check_real(self.outlier_mads, "outlier_mads", low=0.0, high=1e6)
 
 
 @dataclass(frozen=True)
@@ -134,20 +103,6 @@ def _variance_factor(gp: SparseOnlineGP) -> FloatArray:
     _, S = gp.whitened_posterior
     F, _, _ = robust_cholesky(np.eye(gp.n_bv) - 0.5 * (S + S.T), "a model output's I - S")
     return scipy.linalg.solve_triangular(gp.cholesky_factor, F, lower=False, check_finite=False)
-
-
-def _settings_from(stored: list[float]) -> ModelSettings:
-    """:class:`ModelSettings` from an archive's numbers (4 before linear means, 5 before the
-    outlier test, 6 before the standardised support)."""
-    if len(stored) not in (4, 5, 6, 7):
-        raise ValueError(f"settings must hold 4 to 7 numbers, got {len(stored)}")
-    padded = (*stored, 0.0, 0.0, 0.0)[:7]  # the settings an older archive did not have: off
-    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised = padded
-    for name, flag in (("linear_mean", linear_mean), ("standardised_support", standardised)):
-        if flag not in (0.0, 1.0):
-            raise ValueError(f"settings' {name} must be 0 or 1, got {flag}")
-    return ModelSettings(int(max_bv), int(fit_points), int(restarts), tol, linear_mean == 1.0,
-                         mads, standardised == 1.0)  # fmt: skip
 
 
 class GPDynamicsModel:
@@ -200,6 +155,7 @@ class GPDynamicsModel:
     ) -> GPDynamicsModel:  # fmt: skip
         """Fit every output to ``N`` transitions (``[N, d_s]``, ``[N, d_a]``, ``[N]``, ``[N, d_s]``,
         ``[N]``): standardisation, evidence, then a sparse GP streamed every transition."""
+        before = self.support.spacing if self.fitted and self.settings.support_holdout else 0.0
         X, Y = self._outputs(states, actions, rewards, next_states, terminated)
         if X.shape[0] < 2:
             raise ValueError(f"a model needs at least 2 transitions, got {X.shape[0]}")
@@ -230,8 +186,12 @@ class GPDynamicsModel:
         shortest = np.min(relevance, axis=0) if relevance else np.ones(d)
         if self.settings.standardised_support:
             shortest = np.ones(d)
-        self.support = StateSupport(np.vstack([X[:, :d], X[:, :d] + Y[:, :d]]),
-                                    self.x_scale[:d] * shortest, rng)  # fmt: skip
+        S, S2 = X[:, :d], X[:, :d] + Y[:, :d]
+        cut = X.shape[0] - int(self.settings.support_holdout * X.shape[0])
+        newest = np.vstack([S[cut:], S2[cut:]]) if cut < X.shape[0] else None
+        older, scale = np.vstack([S[:cut], S2[:cut]]), self.x_scale[:d] * shortest
+        self.support: StateSupport = StateSupport(older, scale, rng, newest)
+        self.support.spacing = max(self.support.spacing, before)
         self.n_seen, self._means, self._factors = X.shape[0], None, {}
         return self
 
@@ -339,15 +299,39 @@ class GPDynamicsModel:
         [P, d_a], in the data's units: columns ``0..d_s-1`` the state change, ``d_s`` the
         reward (within ``reward_range``), ``d_s + 1`` the termination. Compiled
         (:mod:`geoq.models._nb_mean`); inputs are not validated (a planner's inner loop)."""
+        return self._mean(states, actions, None)
+
+    def mean_gradients(
+        self, states: FloatArray, actions: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`predict_mean` ``[P, J]`` and its gradients ``[P, J, D]`` with respect to
+        the inputs ``[s, a]`` in the data's units (the reward's are 0 where it is clipped;
+        a policy search's pathwise gradients, :mod:`geoq.models.policy_gradient`)."""
+        jac = np.zeros((states.shape[0], self.n_outputs, self.obs_dim + self.action_dim))
+        return self._mean(states, actions, jac), jac
+
+    def _mean(self, states: FloatArray, actions: FloatArray, jac: FloatArray | None) -> FloatArray:
         if not self.fitted:
             raise RuntimeError("predict needs a fitted model: call fit first")
         w, P = self._mean_weights(), states.shape[0]
         z = np.empty((P, len(w.live)))
         X = np.ascontiguousarray(self._inputs(states, actions))
-        posterior_means(X, w.inv_ls, w.basis, w.offsets, w.alpha, w.variance, z)
+        if jac is None:
+            posterior_means(X, w.inv_ls, w.basis, w.offsets, w.alpha, w.variance, z)
+        else:
+            g = np.empty((P, len(w.live), X.shape[1]))
+            posterior_means_and_gradients(
+                X, w.inv_ls, w.basis, w.offsets, w.alpha, w.variance, z, g
+            )
+            jac[:] = self.linear.T
+            jac[:, w.live] += g * self.y_scale[w.live, None]
+            jac /= self.x_scale
         mean = self.y_mean + X @ self.linear
         mean[:, w.live] += z * self.y_scale[w.live]
-        np.clip(mean[:, self.obs_dim], *self.reward_range, out=mean[:, self.obs_dim])
+        d = self.obs_dim
+        if jac is not None:
+            jac[(mean[:, d] < self.reward_range[0]) | (mean[:, d] > self.reward_range[1]), d] = 0.0
+        np.clip(mean[:, d], *self.reward_range, out=mean[:, d])
         return mean
 
     @single_blas_thread_for_small_batches  # a planner's particles: geoq._threads
@@ -401,7 +385,7 @@ class GPDynamicsModel:
         numbers = [s.max_bv, s.fit_points, s.restarts, s.tol, s.linear_mean, s.outlier_mads]
         out: dict[str, Any] = {
             "dims": np.array([self.obs_dim, self.action_dim, self.n_seen]),
-            "settings": np.array([*numbers, s.standardised_support]),
+            "settings": np.array([*numbers, s.standardised_support, s.support_holdout]),
         }
         if not self.fitted:
             return out
@@ -423,7 +407,7 @@ class GPDynamicsModel:
         """Inverse of :meth:`to_arrays`; an :class:`~geoq._io.ArchiveError` names what is wrong."""
         try:
             obs_dim, action_dim, n_seen = (int(v) for v in a["dims"])
-            settings = _settings_from([float(v) for v in a["settings"]])
+            settings = settings_from([float(v) for v in a["settings"]])
             model = cls(obs_dim, action_dim, settings)
             model.n_seen = n_seen
             if "live" not in a:

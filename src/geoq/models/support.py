@@ -34,17 +34,34 @@ _SPACING_POINTS = 1000
 class StateSupport:
     """Seen states ``[N, d]`` (scaled by ``scale`` [d]) and the distance to them."""
 
-    def __init__(self, states: FloatArray, scale: FloatArray, rng: np.random.Generator) -> None:
-        self.reset(states, scale, rng)
+    def __init__(
+        self, states: FloatArray, scale: FloatArray, rng: np.random.Generator,
+        newest: FloatArray | None = None,
+    ) -> None:  # fmt: skip
+        self.reset(states, scale, rng, newest)
 
-    def reset(self, states: FloatArray, scale: FloatArray, rng: np.random.Generator) -> None:
-        """Start again from ``states`` [N, d]: the scale and the spacing follow them."""
+    def reset(
+        self, states: FloatArray, scale: FloatArray, rng: np.random.Generator,
+        newest: FloatArray | None = None,
+    ) -> None:  # fmt: skip
+        """Start again from ``states`` [N, d]: the scale and the spacing follow them. With
+        ``newest`` [n, d] (states that came after all of ``states``), the spacing is the
+        99th percentile of their distances to ``states``, and they join the seen states."""
         self.scale = np.asarray(scale, dtype=np.float64)
-        Z = np.unique(np.asarray(states, dtype=np.float64) / self.scale, axis=0)
+        old = np.asarray(states, dtype=np.float64) / self.scale
+        Z = np.unique(old if newest is None else np.vstack([old, newest / self.scale]), axis=0)
         self._tree_points, self._pending = Z, np.zeros((0, Z.shape[1]))
         self._tree = cKDTree(Z)
-        probe = Z if len(Z) <= _SPACING_POINTS else Z[rng.choice(len(Z), _SPACING_POINTS, False)]
-        nearest = self._tree.query(probe, k=2)[0][:, 1] if len(Z) > 1 else np.zeros(1)
+        if newest is not None and len(newest):
+            probe = newest / self.scale
+            probe = probe if len(probe) <= _SPACING_POINTS else probe[
+                rng.choice(len(probe), _SPACING_POINTS, False)]  # fmt: skip
+            nearest = cKDTree(np.unique(old, axis=0)).query(probe)[0]
+        else:
+            probe = (
+                Z if len(Z) <= _SPACING_POINTS else Z[rng.choice(len(Z), _SPACING_POINTS, False)]
+            )
+            nearest = self._tree.query(probe, k=2)[0][:, 1] if len(Z) > 1 else np.zeros(1)
         self.spacing = max(float(np.quantile(nearest, 0.99)), 1e-12)
 
     def add(self, state: FloatArray) -> None:
@@ -63,6 +80,23 @@ class StateSupport:
             diff = Z[:, None, :] - self._pending[None, :, :]
             d = np.minimum(d, np.sqrt(np.min(np.einsum("pkd,pkd->pk", diff, diff), axis=1)))
         return d / self.spacing
+
+    def distance_gradient(self, states: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`distance` ``[P]`` and its gradient ``[P, d]`` with respect to ``states``
+        (the nearest seen state held fixed; 0 on a seen state)."""
+        Z = states / self.scale
+        dist, index = self._tree.query(Z)
+        nearest = self._tree_points[index]
+        if len(self._pending):
+            diff = Z[:, None, :] - self._pending[None, :, :]
+            d2 = np.einsum("pkd,pkd->pk", diff, diff)
+            k = np.argmin(d2, axis=1)
+            closer = np.sqrt(d2[np.arange(len(Z)), k]) < dist
+            nearest[closer] = self._pending[k[closer]]
+        away = Z - nearest
+        dist = np.sqrt(np.einsum("pd,pd->p", away, away))
+        grad = away / (np.where(dist > 0, dist, 1.0)[:, None] * self.scale * self.spacing)
+        return dist / self.spacing, grad
 
     def to_arrays(self) -> dict[str, Any]:
         """The scaled states (the tree's, then the waiting ones), where they split, the scale

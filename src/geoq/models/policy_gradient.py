@@ -1,0 +1,220 @@
+"""A neural feedback policy searched through a model by its return's gradient.
+
+:class:`~geoq.models.LinearFeedback` cannot reach a target it must first turn its
+joints towards (``Reacher-v5``: the best linear policy, searched on the task itself,
+scores -8.3 where -4 is reached). :class:`MLPFeedback` is one hidden layer of ``tanh``
+units, ``a = mid + half * tanh(W2 tanh(W1 z + b1) + b2)`` with ``z`` the standardised
+state: hundreds of weights, too many for the cross-entropy method, so they are
+searched as PILCO searches its policies, by the gradient of the model's predicted
+return (Deisenroth & Rasmussen 2011), here along sampled roll-outs (pathwise
+gradients with the normals held fixed: PEGASUS, Ng & Jordan 2000; as in Deep PILCO,
+Gal et al. 2016). :func:`soft_return` differentiates, by hand and in reverse through
+the ``T`` steps, the return of roll-outs that go on after the model ends or halts them,
+weighted by the chance they have not: a step's termination output ``p`` (clipped to
+``[0, 1]``) and its halt ``u = min(max(distance - 1, 0), 1)`` where the model has no
+data (:mod:`geoq.models.planner`) make the weight ``w_{t+1} = w_t (1 - p_t)(1 - u_t)``,
+and a halt is paid the least reward seen for the steps left, as there. The state
+changes' stds scale the fixed normals but are held constant in the gradient (the
+means carry it). :func:`search_policy` takes Adam steps (Kingma & Ba 2015) up this
+smooth return, then keeps the result only if it also beats the current policy on the
+exact returns (:func:`~geoq.models.rollout_returns`: ends at 1/2, halts drawn) of
+fresh draws, by :data:`~geoq.models.policy_search.HOLDOUT_SE` paired standard errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geoq._typing import FloatArray
+from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
+from geoq.models.dynamics import GPDynamicsModel
+from geoq.models.planner import rollout_returns
+from geoq.models.policy_search import HOLDOUT_SE
+
+__all__ = ["MLPFeedback", "PolicyGradientSettings", "search_policy", "soft_return"]
+
+
+@dataclass(frozen=True)
+class PolicyGradientSettings:
+    """The gradient search's settings (weights in the standardised state's units)."""
+
+    horizon: int = 300
+    """Model steps of each roll-out (capped at the task's time limit by the caller)."""
+    particles: int = 16
+    """Sampled roll-outs the return is averaged over."""
+    steps: int = 100
+    """Adam steps per search."""
+    learning_rate: float = 0.01
+    """Adam's step size."""
+    sampled: bool = False
+    """Draw the state changes from the model's predictive Gaussians in the gradient's
+    roll-outs (False: follow their means; the particles differ by their starts)."""
+
+    def __post_init__(self) -> None:
+        check_int(self.horizon, "horizon", minimum=1, maximum=100_000)
+        check_int(self.particles, "particles", minimum=2, maximum=100_000)
+        check_int(self.steps, "steps", minimum=0, maximum=100_000)
+        check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
+
+
+class MLPFeedback:
+    """``a = mid + half * tanh(W2 tanh(W1 z + b1) + b2)``, ``z = (s - center) / scale``,
+    with ``hidden`` units; the weights are one flat vector ``[n_params]``
+    (``W1`` [H, d_s], ``b1`` [H], ``W2`` [d_a, H], ``b2`` [d_a])."""
+
+    def __init__(
+        self, low: FloatArray, high: FloatArray, center: FloatArray, scale: FloatArray,
+        hidden: int = 32,
+    ) -> None:  # fmt: skip
+        low = as_float_vector(low, "low")
+        high = as_float_vector(high, "high", low.shape[0])
+        if np.any(high <= low):
+            raise ValueError("the action box must have high > low in every dimension")
+        self.center = as_float_vector(center, "center")
+        self.scale = as_float_vector(scale, "scale", self.center.shape[0])
+        if np.any(self.scale <= 0.0):
+            raise ValueError("scale must be positive in every dimension")
+        self.hidden = check_int(hidden, "hidden", minimum=1, maximum=10_000)
+        self.mid, self.half = (high + low) / 2.0, (high - low) / 2.0
+        d, H, k = self.center.shape[0], self.hidden, self.mid.shape[0]
+        self._sizes = [(H, d), (H,), (k, H), (k,)]
+        self.n_params = H * d + H + k * H + k
+
+    def initial(self, rng: np.random.Generator) -> FloatArray:
+        """Random first weights ``[n_params]``: hidden units of unit-variance inputs, and
+        zero output weights (the box's centre everywhere)."""
+        d, H = self.center.shape[0], self.hidden
+        W1 = rng.standard_normal((H, d)) / np.sqrt(d)
+        b1 = rng.standard_normal(H)
+        return np.concatenate([W1.ravel(), b1, np.zeros(self.n_params - H * d - H)])
+
+    def unpack(self, params: FloatArray) -> list[FloatArray]:
+        """``[W1, b1, W2, b2]`` (views) of the flat weights."""
+        if params.shape != (self.n_params,):
+            raise ValueError(f"params must have shape ({self.n_params},), got {params.shape}")
+        out, at = [], 0
+        for shape in self._sizes:
+            n = int(np.prod(shape))
+            out.append(params[at : at + n].reshape(shape))
+            at += n
+        return out
+
+    def act(self, params: FloatArray, S: FloatArray) -> FloatArray:
+        """Actions ``[P, d_a]`` at states ``[P, d_s]``."""
+        return self.forward(params, S)[0]
+
+    def forward(self, params: FloatArray, S: FloatArray) -> tuple[FloatArray, tuple]:
+        """Actions ``[P, d_a]`` and what :meth:`backward` needs."""
+        W1, b1, W2, b2 = self.unpack(params)
+        z = (S - self.center) / self.scale
+        h = np.tanh(z @ W1.T + b1)
+        y = np.tanh(h @ W2.T + b2)
+        return self.mid + self.half * y, (z, h, y)
+
+    def backward(
+        self, params: FloatArray, cache: tuple, grad_actions: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The gradients ``[n_params]`` (summed over the batch) and ``[P, d_s]`` of
+        ``sum(grad_actions * actions)`` with respect to the weights and the states."""
+        W1, _, W2, _ = self.unpack(params)
+        z, h, y = cache
+        gy = grad_actions * self.half * (1.0 - y**2)  # [P, d_a]
+        gh = (gy @ W2) * (1.0 - h**2)  # [P, H]
+        grad = np.concatenate(
+            [(gh.T @ z).ravel(), gh.sum(axis=0), (gy.T @ h).ravel(), gy.sum(axis=0)]
+        )
+        return grad, (gh @ W1) / self.scale
+
+
+def soft_return(
+    model: GPDynamicsModel,
+    policy: MLPFeedback,
+    params: FloatArray,
+    starts: FloatArray,
+    normals: FloatArray,
+) -> tuple[float, FloatArray]:
+    """The mean smooth return (module docstring) of ``P`` roll-outs from ``starts`` [P, d_s]
+    under the weights ``params`` over ``T`` model steps with the state changes' standard
+    normals ``normals`` [T, P, d_s], and its gradient ``[n_params]``."""
+    T, (P, d) = normals.shape[0], starts.shape
+    r_least = float(model.reward_range[0])
+    S, w, total = starts.copy(), np.ones(P), np.zeros(P)
+    tape = []
+    for t in range(T):
+        A, cache = policy.forward(params, S)
+        mean, jac = model.mean_gradients(S, A)
+        if normals[t].any():  # the same means, plus the stds times the normals
+            S = model.draw(S, A, normals[t])[1]
+        else:  # zero normals: the means' roll-outs, no std asked for
+            S = S + mean[:, :d]
+        end = np.clip(mean[:, d + 1], 0.0, 1.0)
+        dist, dist_grad = model.support.distance_gradient(S)
+        halt = np.clip(dist - 1.0, 0.0, 1.0)
+        rest = (T - 1 - t) * r_least
+        reward = mean[:, d] + (1.0 - end) * halt * rest
+        total += w * reward
+        live = ((mean[:, d + 1] > 0) & (mean[:, d + 1] < 1), (dist > 1) & (dist < 2))
+        tape.append((cache, jac, w, reward, end, halt, rest, dist_grad, *live))
+        w = w * (1.0 - end) * (1.0 - halt)
+    grad = np.zeros(policy.n_params)
+    g_next, gw_next = np.zeros((P, d)), np.zeros(P)
+    for cache, jac, w, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(tape):
+        g_end = -w * halt * rest - gw_next * w * (1.0 - halt)
+        g_halt = w * (1.0 - end) * rest - gw_next * w * (1.0 - end)
+        g_state = g_next + (g_halt * halt_live)[:, None] * dist_grad
+        g_mean = np.zeros(jac.shape[:2])
+        g_mean[:, :d], g_mean[:, d], g_mean[:, d + 1] = g_state, w, g_end * end_live
+        g_input = np.einsum("pj,pjk->pk", g_mean, jac)
+        g_params, g_policy_state = policy.backward(params, cache, g_input[:, d:])
+        grad += g_params
+        g_next = g_state + g_input[:, :d] + g_policy_state
+        gw_next = reward + gw_next * (1.0 - end) * (1.0 - halt)
+    return float(total.mean()), grad / P
+
+
+def search_policy(
+    model: GPDynamicsModel,
+    policy: MLPFeedback,
+    params: FloatArray,
+    starts: FloatArray,
+    rng: np.random.Generator,
+    settings: PolicyGradientSettings | None = None,
+) -> tuple[FloatArray, float]:
+    """Weights ``[n_params]`` found by Adam up :func:`soft_return` from ``params``, on
+    ``particles`` starts drawn from ``starts`` [N, d_s] and normals drawn once, and their
+    exact return on fresh draws; the current ``params`` and theirs unless the found weights
+    beat them there by :data:`~geoq.models.policy_search.HOLDOUT_SE` paired standard
+    errors (module docstring)."""
+    c = settings or PolicyGradientSettings()
+    params = as_float_vector(params, "params", policy.n_params)
+    starts = as_float_matrix(starts, "starts", model.obs_dim)
+    picked = starts[rng.integers(len(starts), size=c.particles)]
+    normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim)) * c.sampled
+    theta, m, v = params.copy(), np.zeros_like(params), np.zeros_like(params)
+    best, best_value = params, -np.inf
+    beta1, beta2 = 0.9, 0.999
+    for k in range(1, c.steps + 1):
+        value, grad = soft_return(model, policy, theta, picked, normals)
+        if not (np.isfinite(value) and np.all(np.isfinite(grad))):
+            break
+        if value > best_value:
+            best, best_value = theta.copy(), value
+        m = beta1 * m + (1 - beta1) * grad
+        v = beta2 * v + (1 - beta2) * grad**2
+        step = (m / (1 - beta1**k)) / (np.sqrt(v / (1 - beta2**k)) + 1e-8)
+        theta = theta + c.learning_rate * step
+    picked = starts[rng.integers(len(starts), size=c.particles)]
+    normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
+
+    def returns(weights: FloatArray) -> FloatArray:
+        return rollout_returns(model, picked, lambda t, S, rows: policy.act(weights, S),
+                               c.horizon, gamma=1.0, noise=normals)  # fmt: skip
+
+    old, new = returns(params), returns(best)
+    gain = new - old
+    se = gain.std(ddof=1) / np.sqrt(len(gain))
+    if gain.mean() > HOLDOUT_SE * se:
+        return best, float(new.mean())
+    return params, float(old.mean())

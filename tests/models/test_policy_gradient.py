@@ -1,0 +1,211 @@
+"""The neural policy's gradient search: each derivative against finite differences, the
+smooth return against the exact roll-outs, and the search against LQR."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from geoq.models import (
+    GPDynamicsModel,
+    MLPFeedback,
+    ModelSettings,
+    PolicyGradientSettings,
+    rollout_returns,
+    search_policy,
+    soft_return,
+)
+
+from ._lqr import A_SYS, B_SYS, learned_model
+from ._lqr import lqr as _lqr
+from ._lqr import reward as _reward
+
+STARTS = np.array([[1.0, 0.0], [-0.5, 1.0], [0.3, -1.0], [-1.0, -0.5]])
+
+
+def _central(f, x: np.ndarray, eps: float) -> np.ndarray:
+    """Central finite differences of a scalar ``f`` at ``x`` [n]."""
+    grad = np.zeros_like(x)
+    for i in range(len(x)):
+        step = np.zeros_like(x)
+        step[i] = eps
+        grad[i] = (f(x + step) - f(x - step)) / (2 * eps)
+    return grad
+
+
+def _ending_model(rng: np.random.Generator) -> GPDynamicsModel:
+    """A nonlinear 3-state model whose episodes end beyond ``|s_0| > 1.5``."""
+    S = rng.normal(size=(200, 3))
+    A = rng.uniform(-1.0, 1.0, size=(200, 1))
+    change = 0.1 * np.column_stack([S[:, 1], np.sin(S[:, 0]) + A[:, 0], -S[:, 2] * A[:, 0]])
+    R = -np.sum(S**2, axis=1) - 0.1 * A[:, 0] ** 2
+    ends = (np.abs(S[:, 0]) > 1.5).astype(float)
+    return GPDynamicsModel(3, 1).fit(S, A, R, S + change, ends, rng)
+
+
+def test_the_means_gradients_are_their_finite_differences() -> None:
+    rng = np.random.default_rng(0)
+    model = _ending_model(rng)
+    S, A = rng.normal(size=(6, 3)), rng.uniform(-1.0, 1.0, size=(6, 1))
+    mean, jac = model.mean_gradients(S, A)
+    # the same sums, compiled apart: they may round apart (fastmath)
+    np.testing.assert_allclose(mean, model.predict_mean(S, A), rtol=1e-7, atol=1e-12)
+    for p in range(6):
+        x = np.append(S[p], A[p])
+        for j in range(model.n_outputs):
+
+            def output(v: np.ndarray, j: int = j) -> float:
+                return float(model.predict_mean(v[None, :3], v[None, 3:])[0, j])
+
+            expected = _central(output, x, 1e-4)
+            np.testing.assert_allclose(
+                jac[p, j], expected, rtol=1e-5, atol=1e-6 * (1 + abs(expected).max())
+            )
+    clipped = mean[:, 3] == model.reward_range[1]
+    assert clipped.any() and not jac[clipped, 3].any()  # a clipped reward does not move
+
+
+def test_the_supports_gradient_is_its_finite_differences() -> None:
+    rng = np.random.default_rng(1)
+    model = _ending_model(rng)
+    for _ in range(70):  # some in the tree, some waiting beside it
+        model.support.add(rng.normal(size=3))
+    S = 2.0 * rng.normal(size=(8, 3))
+    dist, grad = model.support.distance_gradient(S)
+    np.testing.assert_allclose(dist, model.support.distance(S), rtol=1e-12)
+    for p in range(8):
+        expected = _central(lambda s: float(model.support.distance(s[None])[0]), S[p], 1e-6)
+        np.testing.assert_allclose(grad[p], expected, rtol=1e-5, atol=1e-8)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_the_networks_gradients_are_their_finite_differences(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    policy = MLPFeedback(np.array([-1.0, 0.0]), np.array([2.0, 0.5]), rng.normal(size=3),
+                         rng.uniform(0.5, 2.0, 3), hidden=4)  # fmt: skip
+    params, S = rng.normal(size=policy.n_params), rng.normal(size=(5, 3))
+    weights = rng.normal(size=(5, 2))
+    A, cache = policy.forward(params, S)
+    assert np.all(A >= [-1.0, 0.0]) and np.all(A <= [2.0, 0.5])
+    g_params, g_states = policy.backward(params, cache, weights)
+    expected = _central(lambda v: float(np.sum(weights * policy.act(v, S))), params, 1e-6)
+    np.testing.assert_allclose(g_params, expected, rtol=1e-6, atol=1e-8)
+    flat = _central(lambda v: float(np.sum(weights * policy.act(params, v.reshape(5, 3)))),
+                    S.ravel(), 1e-6)  # fmt: skip
+    np.testing.assert_allclose(g_states, flat.reshape(5, 3), rtol=1e-6, atol=1e-8)
+    assert np.array_equal(policy.act(policy.initial(rng), S), np.tile(policy.mid, (5, 1)))
+
+
+def test_the_smooth_returns_gradient_is_its_finite_differences() -> None:
+    rng = np.random.default_rng(2)
+    model = _ending_model(rng)
+    policy = MLPFeedback(np.array([-1.0]), np.array([1.0]), np.zeros(3), np.ones(3), hidden=5)
+    params = policy.initial(rng) + 0.5 * rng.normal(size=policy.n_params)
+    starts = rng.normal(size=(6, 3))
+    normals = np.zeros((15, 6, 3))  # the means' roll-outs (with draws the stds are held
+    _, grad = soft_return(model, policy, params, starts, normals)  # constant in the gradient)
+    expected = _central(lambda v: soft_return(model, policy, v, starts, normals)[0], params, 1e-4)
+    np.testing.assert_allclose(grad, expected, rtol=1e-4, atol=1e-4 * np.abs(expected).max())
+    drawn = soft_return(model, policy, params, starts, rng.normal(size=(15, 6, 3)))[0]
+    assert np.isfinite(drawn) and drawn != soft_return(model, policy, params, starts, normals)[0]
+    ends, halts = [], []
+    S = starts.copy()
+    for _ in range(15):  # the roll-outs did meet the weights' both causes
+        mean = model.predict_mean(S, policy.act(params, S))
+        S = S + mean[:, :3]
+        ends.append(mean[:, 4].max())
+        halts.append(model.support.distance(S).max())
+    assert max(ends) > 0.0 and max(halts) > 1.0
+
+
+def test_with_no_end_and_no_halt_the_smooth_return_is_the_exact_one() -> None:
+    rng = np.random.default_rng(3)
+    model = learned_model(rng, 20.0)
+    model.support.spacing = 1e9  # every state among the data
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=6)
+    params = rng.normal(size=policy.n_params)
+    normals = np.zeros((30, len(STARTS), 2))
+    value, _ = soft_return(model, policy, params, STARTS, normals)
+    exact = rollout_returns(model, STARTS, lambda t, S, rows: policy.act(params, S), 30,
+                            gamma=1.0, noise=None)  # fmt: skip
+    assert value == pytest.approx(exact.mean(), rel=1e-9)
+
+
+def _true_return(policy: MLPFeedback, params: np.ndarray, T: int) -> float:
+    S, total = STARTS.copy(), 0.0
+    for _ in range(T):
+        A = policy.act(params, S)
+        total += _reward(S, A).sum()
+        S = S @ A_SYS.T + A @ B_SYS.T
+    return total / len(STARTS)
+
+
+def test_the_search_through_a_learned_model_nears_the_lqr_return() -> None:
+    rng = np.random.default_rng(4)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=8)
+    start = policy.initial(rng)
+    search = PolicyGradientSettings(horizon=50, particles=16, steps=300, learning_rate=0.1)
+    params, value = search_policy(model, policy, start, STARTS, rng, search)
+    P, _ = _lqr()
+    optimum = -np.mean(np.einsum("pi,ij,pj->p", STARTS, P, STARTS))
+    got = _true_return(policy, params, 100)
+    assert _true_return(policy, start, 100) < 3.0 * optimum  # far from it at the start
+    assert got >= 1.15 * optimum, (got, optimum)  # within 15% (returns are negative)
+    assert np.isfinite(value)
+
+
+def test_the_current_weights_stay_unless_beaten_and_the_same_seed_searches_alike() -> None:
+    rng = np.random.default_rng(5)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=4)
+    start = policy.initial(rng)
+    kept, value = search_policy(model, policy, start, STARTS, rng, PolicyGradientSettings(steps=0))
+    assert np.array_equal(kept, start) and np.isfinite(value)
+    search = PolicyGradientSettings(horizon=20, particles=4, steps=5)
+    runs = [search_policy(model, policy, start, STARTS, np.random.default_rng(6), search)
+            for _ in range(2)]  # fmt: skip
+    assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1] == runs[1][1]
+
+
+def test_bad_settings_and_shapes_are_refused() -> None:
+    with pytest.raises(ValueError, match="particles"):
+        PolicyGradientSettings(particles=1)
+    with pytest.raises(ValueError, match="learning_rate"):
+        PolicyGradientSettings(learning_rate=-1.0)
+    with pytest.raises(ValueError, match="high > low"):
+        MLPFeedback(np.array([1.0]), np.array([1.0]), np.zeros(2), np.ones(2))
+    with pytest.raises(ValueError, match="hidden"):
+        MLPFeedback(np.array([0.0]), np.array([1.0]), np.zeros(2), np.ones(2), hidden=0)
+    policy = MLPFeedback(np.array([0.0]), np.array([1.0]), np.zeros(2), np.ones(2), hidden=3)
+    with pytest.raises(ValueError, match="params"):
+        policy.act(np.zeros(3), np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="params"):
+        search_policy(learned_model(np.random.default_rng(0), 1.0), policy, np.zeros(3), STARTS,
+                      np.random.default_rng(0))  # fmt: skip
+
+
+def test_the_support_holdout_spacing_is_the_newest_states_distance_to_the_rest() -> None:
+    rng = np.random.default_rng(7)
+    S = np.cumsum(0.05 * rng.normal(size=(300, 2)), axis=0)  # one trajectory: steps are short
+    A = rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2 = np.vstack([S[1:], S[-1:] + 0.05])
+    fitted = {
+        h: GPDynamicsModel(2, 1, ModelSettings(support_holdout=h)).fit(
+            S, A, np.zeros(300), S2, np.zeros(300), np.random.default_rng(0)
+        )
+        for h in (0.0, 0.2)
+    }
+    support = fitted[0.2].support
+    old, new = np.vstack([S[:240], S2[:240]]), np.vstack([S[240:], S2[240:]])
+    gaps = np.sqrt(((new[:, None, :] - old[None, :, :]) ** 2 / support.scale**2).sum(-1)).min(1)
+    assert support.spacing == pytest.approx(np.quantile(gaps, 0.99), rel=1e-12)
+    assert support.spacing > 2.0 * fitted[0.0].support.spacing  # a trajectory's step is shorter
+    np.testing.assert_allclose(support.distance(new), 0.0, atol=1e-12)  # the newest are seen
+    arrays = fitted[0.2].to_arrays()
+    assert GPDynamicsModel.from_arrays(arrays).settings == fitted[0.2].settings
+    arrays["settings"] = arrays["settings"][:7]  # an archive from before the holdout
+    assert GPDynamicsModel.from_arrays(arrays).settings.support_holdout == 0.0

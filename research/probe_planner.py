@@ -2,9 +2,10 @@
 
 Not a speed benchmark: the measurement behind the design notes' section "Planning
 through a learned GP model in the agent". The agent is ``GPQAgent(env_id, seed=seed,
-planner=mode)`` (``--mode cem``, ``cem-q`` or ``policy``) with every other setting its default;
-``--planner`` overrides fields of :class:`geoq.models.PlannerSettings` (for both the
-training and the greedy plans), ``--model`` those of :class:`geoq.models.ModelSettings`;
+planner=mode)`` (``--mode cem``, ``cem-q``, ``policy`` or ``policy-net``) with every
+other setting its default; ``--planner`` overrides fields of
+:class:`geoq.models.PlannerSettings` (for both the training and the greedy plans),
+``--model`` those of :class:`geoq.models.ModelSettings`;
 ``--save DIR`` keeps the agent of every checkpoint (for ``probe_model_fixes.py``).
 Every ``--every`` steps it prints the mean greedy return of ``--episodes`` episodes
 (reset seeds ``10_000 + 100 seed + episode``, held out from training), the learning's
@@ -52,7 +53,7 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=500)
     ap.add_argument("--episodes", type=int, default=3)
     ap.add_argument("--planner", default="{}", help="PlannerSettings fields as JSON")
-    ap.add_argument("--mode", default="cem", choices=["cem", "cem-q", "policy"])
+    ap.add_argument("--mode", default="cem", choices=["cem", "cem-q", "policy", "policy-net"])
     ap.add_argument("--save", default=None, help="save the agent at each checkpoint in DIR")
     ap.add_argument("--model", default="{}", help="ModelSettings fields as JSON")
     a = ap.parse_args()

@@ -172,8 +172,8 @@ def test_the_current_weights_stay_unless_beaten_and_the_same_seed_searches_alike
 
 
 def test_bad_settings_and_shapes_are_refused() -> None:
-    with pytest.raises(ValueError, match="particles"):
-        PolicyGradientSettings(particles=1)
+    with pytest.raises(ValueError, match="holdout_particles"):
+        PolicyGradientSettings(holdout_particles=1)
     with pytest.raises(ValueError, match="learning_rate"):
         PolicyGradientSettings(learning_rate=-1.0)
     with pytest.raises(ValueError, match="high > low"):

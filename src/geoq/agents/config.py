@@ -230,10 +230,11 @@ class GPQConfig:
     a short horizon (:mod:`geoq.agents.model_planning`); ``cem-q``: the same, the plans
     closed by the agent's ``Q``; ``policy``: act with a linear feedback policy searched
     through the model over a long horizon, again each episode (PILCO's loop,
-    :mod:`geoq.agents.policy_planning`); ``off``: act on ``Q`` alone. Where both a map and
+    :mod:`geoq.agents.policy_planning`); ``policy-net``: the same with a neural policy
+    searched by gradients; ``off``: act on ``Q`` alone. Where both a map and
     a planner would act, the map's plan comes first."""
     policy_horizon: int | None = None
-    """Model steps a ``planner="policy"`` search scores its policies over (undiscounted);
+    """Model steps a ``policy`` or ``policy-net`` search scores its policies over (undiscounted);
     None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (1,000 without one)."""
 
     def __post_init__(self) -> None:

@@ -10,9 +10,10 @@ Each action, in training and greedy alike, is then the first of the plan
 it could score where the model does not know (:func:`~geoq.models.model_returns`).
 With ``cem-q`` the plans are closed by the agent's own ``Q`` (the posterior mean at the
 plan's last state and action: model-based value expansion, Feinberg et al. 2018;
-TD-MPC's terminal value); with ``cem`` they end at the horizon. With ``policy`` the
-actions are a feedback policy's, searched through the model at episode starts
-(:mod:`geoq.agents.policy_planning`). Measured, the ``Q``
+TD-MPC's terminal value); with ``cem`` they end at the horizon. With ``policy`` and
+``policy-net`` the actions are a feedback policy's, searched through the model at
+episode starts (:mod:`geoq.agents.policy_planning`; ``policy`` refits the model at each
+search and streams nothing). Measured, the ``Q``
 learned alongside made the plans worse on ``InvertedPendulum-v5`` and ``Reacher-v5``
 (docs/design-notes.md).
 

@@ -1,17 +1,19 @@
-"""``planner="policy"``: a feedback policy searched through the agent's model.
+"""``planner="policy"`` and ``"policy-net"``: a feedback policy searched through the model.
 
 PILCO's loop (Deisenroth & Rasmussen 2011) on the agent's
 :class:`~geoq.models.GPDynamicsModel`: at the start of an episode, once the warm-up is
 over and at least :data:`SEARCH_EVERY` transitions have arrived since the last search
-(or none was made), the model is refitted to the stored transitions and the gains of a
-:class:`~geoq.models.LinearFeedback` policy are searched again from the current ones
-(:func:`~geoq.models.search_gains`): scored by the model's return over
-``config.policy_horizon`` steps from the episodes' first states. Training actions are
-the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges (clipped to the
-box); greedy actions are the policy's. A greedy action is one small product, with no
-roll-out.
+(or none was made), the policy is searched again from the current one, scored by the
+model's return over ``config.policy_horizon`` steps from the episodes' first states.
+``policy``: the model is refitted to the stored transitions first, and the gains of a
+:class:`~geoq.models.LinearFeedback` policy are searched by the cross-entropy method
+(:func:`~geoq.models.search_gains`). ``policy-net``: the weights of a
+:class:`~geoq.models.MLPFeedback` are searched by gradients
+(:func:`~geoq.models.search_policy`) through a model of :data:`NET_MODEL`'s settings,
+fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule. Training
+actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
+(clipped to the box); greedy actions are the policy's, with no roll-out.
 """
-
 from __future__ import annotations
 
 from typing import Any

@@ -2,23 +2,28 @@
 
 :class:`~geoq.models.LinearFeedback` cannot reach a target it must first turn its
 joints towards (``Reacher-v5``: the best linear policy, searched on the task itself,
-scores -8.3 where -4 is reached). :class:`MLPFeedback` is one hidden layer of ``tanh``
-units, ``a = mid + half * tanh(W2 tanh(W1 z + b1) + b2)`` with ``z`` the standardised
-state: hundreds of weights, too many for the cross-entropy method, so they are
-searched as PILCO searches its policies, by the gradient of the model's predicted
-return (Deisenroth & Rasmussen 2011), here along sampled roll-outs (pathwise
-gradients with the normals held fixed: PEGASUS, Ng & Jordan 2000; as in Deep PILCO,
-Gal et al. 2016). :func:`soft_return` differentiates, by hand and in reverse through
-the ``T`` steps, the return of roll-outs that go on after the model ends or halts them,
-weighted by the chance they have not: a step's termination output ``p`` (clipped to
-``[0, 1]``) and its halt ``u = min(max(distance - 1, 0), 1)`` where the model has no
-data (:mod:`geoq.models.planner`) make the weight ``w_{t+1} = w_t (1 - p_t)(1 - u_t)``,
-and a halt is paid the least reward seen for the steps left, as there. The state
-changes' stds scale the fixed normals but are held constant in the gradient (the
-means carry it). :func:`search_policy` takes Adam steps (Kingma & Ba 2015) up this
-smooth return, then keeps the result only if it also beats the current policy on the
-exact returns (:func:`~geoq.models.rollout_returns`: ends at 1/2, halts drawn) of
-fresh draws, by :data:`~geoq.models.policy_search.HOLDOUT_SE` paired standard errors.
+scores -8.3; docs/design-notes.md). :class:`MLPFeedback` is one hidden layer of
+``tanh`` units, ``a = mid + half * tanh(W2 tanh(W1 z + b1) + b2)`` with ``z`` the
+standardised state: hundreds of weights, too many for the cross-entropy method, so
+they are searched as PILCO searches its policies, by the gradient of the model's
+predicted return (Deisenroth & Rasmussen 2011), here along roll-outs from sampled
+starts (pathwise gradients with the draws held fixed: PEGASUS, Ng & Jordan 2000; as in
+Deep PILCO, Gal et al. 2016). By default the roll-outs follow the model's means
+(``sampled``: draws from its predictive Gaussians, whose stds are then held constant in
+the gradient: the means carry it); measured on ``Reacher-v5`` the means did as well,
+at a fifth of the cost.
+
+:func:`soft_return` differentiates, by hand and in reverse through the ``T`` steps,
+the return of roll-outs that go on after the model ends or halts them, weighted by the
+chance they have not: a step's termination output ``p`` (clipped to ``[0, 1]``) and its
+halt ``u = min(max(distance - 1, 0), 1)`` where the model has no data
+(:mod:`geoq.models.planner`) make the weight ``w_{t+1} = w_t (1 - p_t)(1 - u_t)``, and
+a halt is paid the least reward seen for the steps left, as there.
+:func:`search_policy` takes Adam steps (Kingma & Ba 2015) up this smooth return, then
+keeps the result only if it also beats the current policy on the exact returns of
+fresh starts (:func:`~geoq.models.rollout_returns`, whose ends are the termination
+output above 1/2), by :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of
+the paired differences.
 """
 
 from __future__ import annotations
@@ -49,12 +54,15 @@ class PolicyGradientSettings:
     learning_rate: float = 0.01
     """Adam's step size."""
     sampled: bool = False
-    """Draw the state changes from the model's predictive Gaussians in the gradient's
-    roll-outs (False: follow their means; the particles differ by their starts)."""
+    """Draw the state changes from the model's predictive Gaussians in the roll-outs
+    (False: follow their means; the particles differ by their starts)."""
+    holdout_particles: int = 64
+    """Roll-outs from fresh starts that the found weights must win on."""
 
     def __post_init__(self) -> None:
         check_int(self.horizon, "horizon", minimum=1, maximum=100_000)
-        check_int(self.particles, "particles", minimum=2, maximum=100_000)
+        check_int(self.particles, "particles", minimum=1, maximum=100_000)
+        check_int(self.holdout_particles, "holdout_particles", minimum=2, maximum=100_000)
         check_int(self.steps, "steps", minimum=0, maximum=100_000)
         check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
 
@@ -205,12 +213,12 @@ def search_policy(
         v = beta2 * v + (1 - beta2) * grad**2
         step = (m / (1 - beta1**k)) / (np.sqrt(v / (1 - beta2**k)) + 1e-8)
         theta = theta + c.learning_rate * step
-    picked = starts[rng.integers(len(starts), size=c.particles)]
-    normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim))
+    picked = starts[rng.integers(len(starts), size=c.holdout_particles)]
+    fresh = rng.standard_normal((c.horizon, *picked.shape)) if c.sampled else None
 
     def returns(weights: FloatArray) -> FloatArray:
         return rollout_returns(model, picked, lambda t, S, rows: policy.act(weights, S),
-                               c.horizon, gamma=1.0, noise=normals)  # fmt: skip
+                               c.horizon, gamma=1.0, noise=fresh)  # fmt: skip
 
     old, new = returns(params), returns(best)
     gain = new - old

@@ -14,6 +14,7 @@ fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule. Trainin
 actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
 """
+
 from __future__ import annotations
 
 from typing import Any

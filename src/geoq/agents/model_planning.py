@@ -77,7 +77,7 @@ class ModelPlanning:
     @property
     def active(self) -> bool:
         """Whether actions are planned now (a planner chosen and a model fitted; with
-        ``policy``, a policy searched)."""
+        ``policy`` or ``policy-net``, a policy searched)."""
         if self.policy_mode:
             return self.feedback.policy is not None
         return self.mode != "off" and self.model.fitted
@@ -101,7 +101,8 @@ class ModelPlanning:
     def start_episode(self, s: FloatArray, buffer: TransitionBuffer,
                       rng: np.random.Generator) -> None:  # fmt: skip
         """A new episode from ``s`` [1, d_s]: the training plan's warm start is forgotten;
-        with ``policy``, ``s`` joins the starts, and a search is made if one is due."""
+        with ``policy`` or ``policy-net``, ``s`` joins the starts, and a search is made if
+        one is due."""
         self.training.reset()
         if not self.policy_mode:
             return

@@ -7,7 +7,11 @@ input as on the data, and an output whose budget cannot cover its data is unsure
 it. :class:`StateSupport` measures it directly: the distance from a state to the
 nearest state seen, in units of the states' standard deviations, divided by the data's
 own spacing (the 99th percentile of the seen states' nearest-neighbour distances, set
-at :meth:`StateSupport.reset`). 1 or less: among the data.
+at :meth:`StateSupport.reset`). 1 or less: among the data. Along trajectories a
+state's nearest neighbour is its own next step, so that spacing measures a step; given
+the newest states apart, the spacing is instead the 99th percentile of their
+distances to the older ones: how far new experience lands from the old
+(``ModelSettings.support_holdout``).
 
 The states live in a k-d tree (:class:`scipy.spatial.cKDTree`) and, once added, in a
 short list searched by brute force until ``REBUILD`` of them wait; the tree is then

@@ -36,7 +36,7 @@ from geoq._typing import FloatArray
 from geoq._validation import as_float_matrix, as_float_vector, check_int, check_real
 from geoq.models.dynamics import GPDynamicsModel
 from geoq.models.planner import rollout_returns
-from geoq.models.policy_search import HOLDOUT_SE
+from geoq.models.policy_search import HOLDOUT_SE, FeedbackBase
 
 __all__ = ["MLPFeedback", "PolicyGradientSettings", "search_policy", "soft_return"]
 
@@ -67,7 +67,7 @@ class PolicyGradientSettings:
         check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
 
 
-class MLPFeedback:
+class MLPFeedback(FeedbackBase):
     """``a = mid + half * tanh(W2 tanh(W1 z + b1) + b2)``, ``z = (s - center) / scale``,
     with ``hidden`` units; the weights are one flat vector ``[n_params]``
     (``W1`` [H, d_s], ``b1`` [H], ``W2`` [d_a, H], ``b2`` [d_a])."""
@@ -76,16 +76,8 @@ class MLPFeedback:
         self, low: FloatArray, high: FloatArray, center: FloatArray, scale: FloatArray,
         hidden: int = 32,
     ) -> None:  # fmt: skip
-        low = as_float_vector(low, "low")
-        high = as_float_vector(high, "high", low.shape[0])
-        if np.any(high <= low):
-            raise ValueError("the action box must have high > low in every dimension")
-        self.center = as_float_vector(center, "center")
-        self.scale = as_float_vector(scale, "scale", self.center.shape[0])
-        if np.any(self.scale <= 0.0):
-            raise ValueError("scale must be positive in every dimension")
+        super().__init__(low, high, center, scale)
         self.hidden = check_int(hidden, "hidden", minimum=1, maximum=10_000)
-        self.mid, self.half = (high + low) / 2.0, (high - low) / 2.0
         d, H, k = self.center.shape[0], self.hidden, self.mid.shape[0]
         self._sizes = [(H, d), (H,), (k, H), (k,)]
         self.n_params = H * d + H + k * H + k

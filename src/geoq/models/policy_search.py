@@ -76,9 +76,9 @@ class PolicySearchSettings:
         check_real(self.min_std, "min_std", low=0.0, high=100.0)
 
 
-class LinearFeedback:
-    """``a = mid + half * tanh(K [z, 1])``, ``z = (s - center) / scale``: actions inside
-    the box ``[low, high]`` for any gains ``K`` [d_a, d_s + 1]."""
+class FeedbackBase:
+    """What a feedback policy acts in: the action box ``[low, high]`` (its ``mid`` and
+    ``half`` [d_a]) and the states' standardisation ``z = (s - center) / scale`` [d_s]."""
 
     def __init__(self, low: FloatArray, high: FloatArray, center: FloatArray, scale: FloatArray):
         low = as_float_vector(low, "low")
@@ -90,6 +90,11 @@ class LinearFeedback:
         if np.any(self.scale <= 0.0):
             raise ValueError("scale must be positive in every dimension")
         self.mid, self.half = (high + low) / 2.0, (high - low) / 2.0
+
+
+class LinearFeedback(FeedbackBase):
+    """``a = mid + half * tanh(K [z, 1])``, ``z = (s - center) / scale``: actions inside
+    the box ``[low, high]`` for any gains ``K`` [d_a, d_s + 1]."""
 
     @property
     def shape(self) -> tuple[int, int]:

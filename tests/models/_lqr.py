@@ -26,6 +26,17 @@ def reward(S: np.ndarray, A: np.ndarray) -> np.ndarray:
     return -np.einsum("pi,ij,pj->p", S, Q_COST, S) - np.einsum("pi,ij,pj->p", A, R_COST, A)
 
 
+def true_return(act, starts: np.ndarray, T: int) -> float:  # type: ignore[no-untyped-def]
+    """The mean return over ``T`` steps of the true system from ``starts`` [P, 2] under
+    ``act(states [P, 2]) -> actions [P, 1]``, by a plain loop."""
+    S, total = starts.copy(), 0.0
+    for _ in range(T):
+        A = act(S)
+        total += reward(S, A).sum()
+        S = S @ A_SYS.T + A @ B_SYS.T
+    return total / len(starts)
+
+
 def learned_model(rng: np.random.Generator, action_bound: float) -> GPDynamicsModel:
     """A GP model (150 basis vectors) fitted to 400 transitions of states uniform on
     ``[-2, 2]^2`` and actions uniform on ``[-action_bound, action_bound]``."""

@@ -18,9 +18,8 @@ from geoq.models import (
     soft_return,
 )
 
-from ._lqr import A_SYS, B_SYS, learned_model
+from ._lqr import learned_model, true_return
 from ._lqr import lqr as _lqr
-from ._lqr import reward as _reward
 
 STARTS = np.array([[1.0, 0.0], [-0.5, 1.0], [0.3, -1.0], [-1.0, -0.5]])
 
@@ -135,12 +134,7 @@ def test_with_no_end_and_no_halt_the_smooth_return_is_the_exact_one() -> None:
 
 
 def _true_return(policy: MLPFeedback, params: np.ndarray, T: int) -> float:
-    S, total = STARTS.copy(), 0.0
-    for _ in range(T):
-        A = policy.act(params, S)
-        total += _reward(S, A).sum()
-        S = S @ A_SYS.T + A @ B_SYS.T
-    return total / len(STARTS)
+    return true_return(lambda S: policy.act(params, S), STARTS, T)
 
 
 def test_the_search_through_a_learned_model_nears_the_lqr_return() -> None:

@@ -15,7 +15,7 @@ from geoq.models import (
     search_gains,
 )
 
-from ._lqr import A_SYS, B_SYS, Everywhere, learned_model
+from ._lqr import A_SYS, B_SYS, Everywhere, learned_model, true_return
 from ._lqr import lqr as _lqr
 from ._lqr import reward as _reward
 
@@ -24,12 +24,7 @@ STARTS = np.array([[1.0, 0.0], [-0.5, 1.0], [0.3, -1.0], [-1.0, -0.5]])
 
 def _true_return(policy: LinearFeedback, gains: np.ndarray, starts: np.ndarray, T: int) -> float:
     """The policy's mean return on the true system, by a plain loop."""
-    S, total = starts.copy(), 0.0
-    for _ in range(T):
-        A = policy.act(gains, S)
-        total += _reward(S, A).sum()
-        S = S @ A_SYS.T + A @ B_SYS.T
-    return total / len(starts)
+    return true_return(lambda S: policy.act(gains, S), starts, T)
 
 
 class _KnownModel:

@@ -110,14 +110,18 @@ def test_the_smooth_returns_gradient_is_its_finite_differences() -> None:
     np.testing.assert_allclose(grad, expected, rtol=1e-4, atol=1e-4 * np.abs(expected).max())
     drawn = soft_return(model, policy, params, starts, rng.normal(size=(15, 6, 3)))[0]
     assert np.isfinite(drawn) and drawn != soft_return(model, policy, params, starts, normals)[0]
-    ends, halts = [], []
+    ends, halts, running, w = [], [], [], np.ones(6)
     S = starts.copy()
     for _ in range(15):  # the roll-outs did meet the weights' both causes
         mean = model.predict_mean(S, policy.act(params, S))
         S = S + mean[:, :3]
         ends.append(mean[:, 4].max())
-        halts.append(model.support.distance(S).max())
+        dist = model.support.distance(S)
+        halts.append(dist.max())
+        w *= (1 - np.clip(mean[:, 4], 0, 1)) * (1 - np.clip(dist - 1, 0, 1))
+        running.append(int((w > 0).sum()))
     assert max(ends) > 0.0 and max(halts) > 1.0
+    assert len(set(running)) > 2  # roll-outs stop for sure at different steps (not stepped on)
 
 
 def test_with_no_end_and_no_halt_the_smooth_return_is_the_exact_one() -> None:

@@ -80,7 +80,8 @@ class MLPFeedback(FeedbackBase):
         self.hidden = check_int(hidden, "hidden", minimum=1, maximum=10_000)
         d, H, k = self.center.shape[0], self.hidden, self.mid.shape[0]
         self._sizes = [(H, d), (H,), (k, H), (k,)]
-        self.n_params = H * d + H + k * H + k
+        self._ends = np.cumsum([H * d, H, k * H, k]).tolist()
+        self.n_params = self._ends[-1]
 
     def initial(self, rng: np.random.Generator) -> FloatArray:
         """Random first weights ``[n_params]``: hidden units of unit-variance inputs, and
@@ -94,12 +95,8 @@ class MLPFeedback(FeedbackBase):
         """``[W1, b1, W2, b2]`` (views) of the flat weights."""
         if params.shape != (self.n_params,):
             raise ValueError(f"params must have shape ({self.n_params},), got {params.shape}")
-        out, at = [], 0
-        for shape in self._sizes:
-            n = int(np.prod(shape))
-            out.append(params[at : at + n].reshape(shape))
-            at += n
-        return out
+        starts = [0, *self._ends[:-1]]
+        return [params[a:b].reshape(shape) for a, b, shape in zip(starts, self._ends, self._sizes)]
 
     def act(self, params: FloatArray, S: FloatArray) -> FloatArray:
         """Actions ``[P, d_a]`` at states ``[P, d_s]``."""
@@ -141,36 +138,44 @@ def soft_return(
     T, (P, d) = normals.shape[0], starts.shape
     r_least = float(model.reward_range[0])
     S, w, total = starts.copy(), np.ones(P), np.zeros(P)
-    tape = []
+    rows, tape = np.arange(P), []
     for t in range(T):
-        A, cache = policy.forward(params, S)
-        mean, jac = model.mean_gradients(S, A)
+        rows = rows[w[rows] > 0.0]  # an ended or halted roll-out adds nothing more
+        if rows.size == 0:
+            break
+        s, w_t = S[rows], w[rows]
+        A, cache = policy.forward(params, s)
+        mean, jac = model.mean_gradients(s, A)
         if normals[t].any():  # the same means, plus the stds times the normals
-            S = model.draw(S, A, normals[t])[1]
+            s = model.draw(s, A, normals[t][rows])[1]
         else:  # zero normals: the means' roll-outs, no std asked for
-            S = S + mean[:, :d]
+            s = s + mean[:, :d]
+        S[rows] = s
         end = np.clip(mean[:, d + 1], 0.0, 1.0)
-        dist, dist_grad = model.support.distance_gradient(S)
+        dist, dist_grad = model.support.distance_gradient(s)
         halt = np.clip(dist - 1.0, 0.0, 1.0)
         rest = (T - 1 - t) * r_least
         reward = mean[:, d] + (1.0 - end) * halt * rest
-        total += w * reward
+        total[rows] += w_t * reward
         live = ((mean[:, d + 1] > 0) & (mean[:, d + 1] < 1), (dist > 1) & (dist < 2))
-        tape.append((cache, jac, w, reward, end, halt, rest, dist_grad, *live))
-        w = w * (1.0 - end) * (1.0 - halt)
+        tape.append((rows, cache, jac, w_t, reward, end, halt, rest, dist_grad, *live))
+        w[rows] = w_t * (1.0 - end) * (1.0 - halt)
     grad = np.zeros(policy.n_params)
     g_next, gw_next = np.zeros((P, d)), np.zeros(P)
-    for cache, jac, w, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(tape):
-        g_end = -w * halt * rest - gw_next * w * (1.0 - halt)
-        g_halt = w * (1.0 - end) * rest - gw_next * w * (1.0 - end)
-        g_state = g_next + (g_halt * halt_live)[:, None] * dist_grad
+    for rows, cache, jac, w, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(
+        tape
+    ):
+        gw = gw_next[rows]
+        g_end = -w * halt * rest - gw * w * (1.0 - halt)
+        g_halt = w * (1.0 - end) * rest - gw * w * (1.0 - end)
+        g_state = g_next[rows] + (g_halt * halt_live)[:, None] * dist_grad
         g_mean = np.zeros(jac.shape[:2])
         g_mean[:, :d], g_mean[:, d], g_mean[:, d + 1] = g_state, w, g_end * end_live
         g_input = np.einsum("pj,pjk->pk", g_mean, jac)
         g_params, g_policy_state = policy.backward(params, cache, g_input[:, d:])
         grad += g_params
-        g_next = g_state + g_input[:, :d] + g_policy_state
-        gw_next = reward + gw_next * (1.0 - end) * (1.0 - halt)
+        g_next[rows] = g_state + g_input[:, :d] + g_policy_state
+        gw_next[rows] = reward + gw * (1.0 - end) * (1.0 - halt)
     return float(total.mean()), grad / P
 
 

@@ -185,6 +185,9 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert np.array_equal(ours.gains, theirs.gains) and np.array_equal(ours.starts, theirs.starts)
     assert (ours.value, ours.searched_at) == (theirs.value, theirs.searched_at)
     assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
+    assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
+    assert ours.real_test == theirs.real_test == (planner == "policy-net")
+    assert (ours.kept is None) == (theirs.kept is None)
     a.learn(120)
     loaded.learn(120)
     for x, y in zip(a.buffer.arrays(), loaded.buffer.arrays(), strict=True):
@@ -193,7 +196,8 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
         arrays = dict(f)
     for key, bad, match in [("model/policy_gains", np.zeros((2, 2)), "policy_gains"),
                             ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
-                            ("model/policy_scale", np.zeros(1), "scale")]:  # fmt: skip
+                            ("model/policy_scale", np.zeros(1), "scale"),
+                            ("model/policy_returns", np.array([np.nan]), "policy_returns")]:  # fmt: skip
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
         with pytest.raises(ArchiveError, match=match):
             GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())

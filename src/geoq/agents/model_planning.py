@@ -70,8 +70,9 @@ class ModelPlanning:
         self.training = CEMPlanner(low, high, PlannerSettings())
         self.greedy = CEMPlanner(low, high, PlannerSettings())
         assert config.policy_horizon is not None  # resolved by GPQConfig.for_dims
-        self.feedback = FeedbackPlanning(obs_dim, low, high, config.policy_horizon,
-                                         net=self.mode == "policy-net")  # fmt: skip
+        net = self.mode == "policy-net"
+        self.feedback = FeedbackPlanning(obs_dim, low, high, config.policy_horizon, net=net,
+                                         real_test=net)  # fmt: skip
         self.next_fit = self.first_fit
 
     @property
@@ -108,10 +109,12 @@ class ModelPlanning:
             return
         self.feedback.starts = np.vstack([self.feedback.starts, s])
         n = len(buffer)
+        self.feedback.close_episode(buffer.arrays()[2])
         if n >= self.first_fit and self.feedback.due(n):
             if self.mode == "policy" or not self.model.fitted:
                 self._fit(buffer, rng)
             self.feedback.search(self.model, n, rng)
+        self.feedback.open_episode(n)
 
     def action(
         self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None

@@ -13,6 +13,14 @@ model's return over ``config.policy_horizon`` steps from the episodes' first sta
 fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule. Training
 actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
+
+``policy-net`` also tests what a search found on the task itself (``real_test``): a
+search is due only once the current weights have run :data:`TEST_EPISODES` episodes,
+and weights that replaced others are kept only if their episodes' returns (an
+episode cut short by ``learn``'s budget counts with the return it had) are not below
+the weights' before by more than :data:`~geoq.models.policy_search.HOLDOUT_SE`
+standard errors of the difference of the means; else those come back, and the next
+search starts from them with the data the failed ones brought.
 """
 
 from __future__ import annotations
@@ -32,11 +40,14 @@ from geoq.models import (
     search_gains,
     search_policy,
 )
+from geoq.models.policy_search import HOLDOUT_SE
 
-__all__ = ["EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "FeedbackPlanning"]
+__all__ = ["EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "TEST_EPISODES", "FeedbackPlanning"]
 
 #: Least number of new transitions between two searches.
 SEARCH_EVERY = 100
+#: Episodes the current weights run before the next search, with ``real_test``.
+TEST_EPISODES = 2
 #: Std of the training actions' noise, in half-ranges of the action box.
 EXPLORATION = 0.1
 #: The model a ``policy-net`` search reads: the support in standardised states,
@@ -51,11 +62,17 @@ class FeedbackPlanning:
     search; ``net``: an :class:`~geoq.models.MLPFeedback`, else a
     :class:`~geoq.models.LinearFeedback`), its weights ``gains`` ([d_a, d_s + 1], or the
     network's ``[n_params]``) and score ``value`` (nan before), and ``searched_at``
-    (transitions stored at the last search)."""
+    (transitions stored at the last search); with ``real_test`` (module docstring), the
+    returns of the episodes run with the current weights ``returns``, the weights they
+    replaced, their score and returns ``kept`` (None: none on trial), and the first
+    transition of the running episode ``episode_from`` (-1: not run by a policy)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
-                 net: bool = False):  # fmt: skip
-        self.low, self.high, self.net = low, high, net
+                 net: bool = False, real_test: bool = False):  # fmt: skip
+        self.low, self.high, self.net, self.real_test = low, high, net, real_test
+        self.returns: list[float] = []
+        self.kept: tuple[FloatArray, float, list[float]] | None = None
+        self.episode_from = -1
         self.settings = PolicySearchSettings(horizon=horizon)
         self.gradient_settings = PolicyGradientSettings(horizon=horizon)
         self.starts = np.zeros((0, obs_dim))
@@ -65,7 +82,33 @@ class FeedbackPlanning:
 
     def due(self, n: int) -> bool:
         """Whether a search is due with ``n`` transitions stored."""
-        return self.policy is None or n - self.searched_at >= SEARCH_EVERY
+        if self.policy is None:
+            return True
+        tested = not self.real_test or len(self.returns) >= TEST_EPISODES
+        return tested and n - self.searched_at >= SEARCH_EVERY
+
+    def close_episode(self, rewards: FloatArray) -> None:
+        """The episode before the stored transitions' rewards ``rewards`` [n] ends: if a
+        policy ran it, its return joins ``returns``."""
+        if self.episode_from >= 0 and len(rewards) > self.episode_from:
+            self.returns.append(float(rewards[self.episode_from :].sum()))
+        self.episode_from = -1
+
+    def open_episode(self, n: int) -> None:
+        """An episode starts after ``n`` stored transitions (run by the policy, if any)."""
+        self.episode_from = n if self.policy is not None else -1
+
+    def _judge(self) -> None:
+        """Keep the weights on trial, or bring back those they replaced (module docstring)."""
+        if self.kept is None:
+            return
+        gains, value, returns = self.kept
+        new, old = np.array(self.returns), np.array(returns)
+        if len(new) >= 2 and len(old) >= 2:
+            se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
+            if new.mean() < old.mean() - HOLDOUT_SE * se:
+                self.gains, self.value, self.returns = gains, value, returns
+        self.kept = None
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
         kind = MLPFeedback if self.net else LinearFeedback
@@ -78,6 +121,9 @@ class FeedbackPlanning:
             self.policy = self._make(model.x_mean[:d], model.x_scale[:d])
             if isinstance(self.policy, MLPFeedback):
                 self.gains = self.policy.initial(rng)
+        elif self.real_test:
+            self._judge()
+        before = (self.gains, self.value, self.returns)
         if isinstance(self.policy, MLPFeedback):
             self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
                                                    rng, self.gradient_settings)  # fmt: skip
@@ -85,6 +131,8 @@ class FeedbackPlanning:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip
         self.searched_at = n
+        if self.real_test and len(before[2]) and not np.array_equal(self.gains, before[0]):
+            self.kept, self.returns = before, []
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
         """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
@@ -97,14 +145,21 @@ class FeedbackPlanning:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The starts, and once searched the policy, its gains and their score."""
+        """The starts, and once searched the policy, its gains and their score, the real
+        returns and the running episode's start, and the weights on trial replaced."""
         arrays: dict[str, Any] = {"policy_starts": self.starts}
         if self.policy is not None:
             arrays |= {
                 "policy_center": self.policy.center, "policy_scale": self.policy.scale,
                 "policy_gains": self.gains, "policy_value": np.array(self.value),
                 "policy_searched_at": np.array(self.searched_at),
+                "policy_returns": np.array(self.returns, dtype=np.float64),
+                "policy_episode_from": np.array(self.episode_from),
             }  # fmt: skip
+        if self.kept is not None:
+            gains, value, returns = self.kept
+            arrays |= {"policy_kept_gains": gains, "policy_kept_value": np.array(value),
+                       "policy_kept_returns": np.array(returns, dtype=np.float64)}  # fmt: skip
         return arrays
 
     def restore(self, a: dict[str, Any]) -> None:
@@ -118,9 +173,22 @@ class FeedbackPlanning:
         if "policy_gains" not in a:
             return
         policy = self._make(a["policy_center"], a["policy_scale"])
-        gains = np.asarray(a["policy_gains"], dtype=np.float64)
         shape = (policy.n_params,) if isinstance(policy, MLPFeedback) else policy.shape
-        if gains.shape != shape or not np.all(np.isfinite(gains)):
-            raise ValueError(f"policy_gains must be finite of shape {shape}")
-        self.policy, self.gains = policy, gains
+        self.policy, self.gains = policy, _finite(a["policy_gains"], "policy_gains", shape)
         self.value, self.searched_at = float(a["policy_value"]), int(a["policy_searched_at"])
+        self.returns = list(_finite(a.get("policy_returns", []), "policy_returns", None))
+        self.episode_from = int(a.get("policy_episode_from", -1))
+        if "policy_kept_gains" in a:
+            kept = _finite(a["policy_kept_gains"], "policy_kept_gains", shape)
+            returns = _finite(a["policy_kept_returns"], "policy_kept_returns", None)
+            self.kept = (kept, float(a["policy_kept_value"]), list(returns))
+
+
+def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:
+    """``value`` as finite float64 of ``shape`` (None: any 1-D), else ``ValueError``."""
+    array = np.asarray(value, dtype=np.float64)
+    if (array.ndim != 1 if shape is None else array.shape != shape) or not np.all(
+        np.isfinite(array)
+    ):
+        raise ValueError(f"{name} must be finite of shape {shape or '[N]'}, got {array.shape}")
+    return array

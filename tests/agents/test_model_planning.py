@@ -194,10 +194,11 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
         assert np.array_equal(x, y)
     with np.load(tmp_path / "a.npz", allow_pickle=False) as f:
         arrays = dict(f)
-    for key, bad, match in [("model/policy_gains", np.zeros((2, 2)), "policy_gains"),
-                            ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
-                            ("model/policy_scale", np.zeros(1), "scale"),
-                            ("model/policy_returns", np.array([np.nan]), "policy_returns")]:  # fmt: skip
+    damaged = [("model/policy_gains", np.zeros((2, 2)), "policy_gains"),
+               ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
+               ("model/policy_scale", np.zeros(1), "scale"),
+               ("model/policy_returns", np.array([np.nan]), "policy_returns")]  # fmt: skip
+    for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
         with pytest.raises(ArchiveError, match=match):
             GPQAgent.load(tmp_path / "bad.npz", env=PointToGoal())

@@ -19,7 +19,7 @@ def _planning() -> tuple[FeedbackPlanning, GPDynamicsModel, np.random.Generator]
     rng = np.random.default_rng(0)
     S, A = rng.uniform(-1, 1, (200, 2)), rng.uniform(-1, 1, (200, 1))
     change = np.column_stack([0.1 * S[:, 1], 0.1 * A[:, 0]])
-    model = GPDynamicsModel(2, 1).fit(S, A, -S[:, 0] ** 2, S + change, np.zeros(200), rng)
+    model = GPDynamicsModel(2, 1).fit(S, A, -(S[:, 0] ** 2), S + change, np.zeros(200), rng)
     planning = FeedbackPlanning(2, LOW, HIGH, horizon=10, net=True, real_test=True)
     planning.gradient_settings = PolicyGradientSettings(horizon=10, steps=0)
     planning.starts = rng.uniform(-0.5, 0.5, (8, 2))

@@ -95,8 +95,8 @@ class MLPFeedback(FeedbackBase):
         """``[W1, b1, W2, b2]`` (views) of the flat weights."""
         if params.shape != (self.n_params,):
             raise ValueError(f"params must have shape ({self.n_params},), got {params.shape}")
-        starts = [0, *self._ends[:-1]]
-        return [params[a:b].reshape(shape) for a, b, shape in zip(starts, self._ends, self._sizes)]
+        bounds = zip([0, *self._ends[:-1]], self._ends, self._sizes, strict=True)
+        return [params[a:b].reshape(shape) for a, b, shape in bounds]
 
     def act(self, params: FloatArray, S: FloatArray) -> FloatArray:
         """Actions ``[P, d_a]`` at states ``[P, d_s]``."""

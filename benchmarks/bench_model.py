@@ -44,6 +44,19 @@ from geoq.models import (
     soft_return,
 )
 
+#: The tables' task sizes: InvertedPendulum's and Reacher's.
+SIZES = (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2))
+
+
+def _net_case(model: GPDynamicsModel, seed: int, spread: float, horizon: int):  # type: ignore[no-untyped-def]
+    """A network policy for ``model``, weights ``spread`` away from its first ones, 16
+    starts and the means' zero normals over ``horizon`` steps."""
+    d_s, d_a = model.obs_dim, model.action_dim
+    rng = np.random.default_rng(seed)
+    policy = MLPFeedback(-np.ones(d_a), np.ones(d_a), model.x_mean[:d_s], model.x_scale[:d_s])
+    params = policy.initial(rng) + spread * rng.normal(size=policy.n_params)
+    return policy, params, rng.normal(size=(16, d_s)), np.zeros((horizon, 16, d_s))
+
 
 def _model(d_s: int, d_a: int, n: int, max_bv: int, ends: bool = True) -> GPDynamicsModel:
     rng = np.random.default_rng(0)
@@ -64,7 +77,7 @@ def _seconds(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
 def main(quick: bool = False) -> None:
     n, max_bv, particles, repeats = (200, 30, 16, 3) if quick else (2000, 200, 64, 50)
     print(f"{'task sizes':<22} {'what':<11} {'model':>9} {'per output':>11} {'ratio':>7}")
-    for name, d_s, d_a in (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2)):
+    for name, d_s, d_a in SIZES:
         model = _model(d_s, d_a, n, max_bv)
         rng = np.random.default_rng(1)
         S, A = rng.normal(size=(particles, d_s)), rng.uniform(-1, 1, size=(particles, d_a))
@@ -107,7 +120,7 @@ def search_scoring(quick: bool = False) -> None:
     """The second table (module docstring)."""
     n, max_bv, horizon, repeats = (200, 30, 20, 1) if quick else (2000, 200, 200, 3)
     print(f"\n{'task sizes':<22} {'running only':>13} {'every particle':>15} {'ratio':>7}")
-    for name, d_s, d_a in (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2)):
+    for name, d_s, d_a in SIZES:
         model = _model(d_s, d_a, n, max_bv)
         rng = np.random.default_rng(2)
         policy = LinearFeedback(
@@ -127,13 +140,10 @@ def gradient_cost(quick: bool = False) -> None:
     """The third table (module docstring)."""
     n, max_bv, horizon, repeats = (200, 30, 10, 1) if quick else (2000, 200, 50, 10)
     print(f"\n{'task sizes':<22} {'weights':>8} {'gradient':>10} {'roll-out':>10} {'ratio':>7}")
-    for name, d_s, d_a in (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2)):
+    for name, d_s, d_a in SIZES:
         model = _model(d_s, d_a, n, max_bv, ends=False)
         model.support.spacing = 1e9  # no end and no halt: the two agree (to rounding)
-        rng = np.random.default_rng(3)
-        policy = MLPFeedback(-np.ones(d_a), np.ones(d_a), model.x_mean[:d_s], model.x_scale[:d_s])
-        params = policy.initial(rng) + 0.3 * rng.normal(size=policy.n_params)
-        starts, normals = rng.normal(size=(16, d_s)), np.zeros((horizon, 16, d_s))
+        policy, params, starts, normals = _net_case(model, 3, 0.3, horizon)
 
         def exact() -> np.ndarray:
             return rollout_returns(model, starts, lambda t, S, rows: policy.act(params, S),  # noqa: B023
@@ -183,12 +193,9 @@ def gradient_running_only(quick: bool = False) -> None:
     """The fourth table (module docstring)."""
     n, max_bv, horizon, repeats = (200, 30, 20, 1) if quick else (2000, 200, 200, 3)
     print(f"\n{'task sizes':<22} {'running only':>13} {'every roll-out':>15} {'ratio':>7}")
-    for name, d_s, d_a in (("4 states + 1 action", 4, 1), ("10 states + 2 actions", 10, 2)):
+    for name, d_s, d_a in SIZES:
         model = _model(d_s, d_a, n, max_bv)
-        rng = np.random.default_rng(4)
-        policy = MLPFeedback(-np.ones(d_a), np.ones(d_a), model.x_mean[:d_s], model.x_scale[:d_s])
-        params = policy.initial(rng) + rng.normal(size=policy.n_params)
-        starts, normals = rng.normal(size=(16, d_s)), np.zeros((horizon, 16, d_s))
+        policy, params, starts, normals = _net_case(model, 4, 1.0, horizon)
         value, grad = soft_return(model, policy, params, starts, normals)
         base_value, base_grad = _soft_every_particle(model, policy, params, starts, horizon)
         np.testing.assert_allclose(value, base_value, rtol=1e-9)

@@ -187,7 +187,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
     assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
     assert ours.real_test == theirs.real_test == (planner == "policy-net")
-    assert (ours.kept is None) == (theirs.kept is None)
+    assert (ours.kept is None) == (theirs.kept is None) and ours.acting == theirs.acting
     a.learn(120)
     loaded.learn(120)
     for x, y in zip(a.buffer.arrays(), loaded.buffer.arrays(), strict=True):
@@ -197,7 +197,8 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     damaged = [("model/policy_gains", np.zeros((2, 2)), "policy_gains"),
                ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
                ("model/policy_scale", np.zeros(1), "scale"),
-               ("model/policy_returns", np.array([np.nan]), "policy_returns")]  # fmt: skip
+               ("model/policy_returns", np.array([np.nan]), "policy_returns"),
+               ("model/policy_acting", np.array(2.0), "policy_acting")]  # fmt: skip
     for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
         with pytest.raises(ArchiveError, match=match):

@@ -1,6 +1,7 @@
 """``planner="policy-net"``'s test on the task itself (:mod:`geoq.agents.policy_planning`):
 weights a search put in place run :data:`TEST_EPISODES` episodes, and give way to the
-weights before them if their returns are worse by more than two standard errors."""
+actor before them (weights, or the agent's ``Q``) if their returns are worse by more
+than two standard errors."""
 
 from __future__ import annotations
 
@@ -23,14 +24,18 @@ def _planning() -> tuple[FeedbackPlanning, GPDynamicsModel, np.random.Generator]
     planning = FeedbackPlanning(2, LOW, HIGH, horizon=10, net=True, real_test=True)
     planning.gradient_settings = PolicyGradientSettings(horizon=10, steps=0)
     planning.starts = rng.uniform(-0.5, 0.5, (8, 2))
+    planning.returns = [-1.0] * TEST_EPISODES  # Q's episodes
     planning.search(model, 0, rng)
-    assert planning.policy is not None and planning.kept is None  # the first is on no trial
+    # weights the search did not move: Q keeps acting, and no trial
+    assert planning.policy is not None and planning.kept is None and not planning.acting
+    planning.acting = True
     return planning, model, rng
 
 
-def test_an_episode_run_by_the_policy_adds_its_return() -> None:
+def test_an_episode_adds_its_return_whoever_acts() -> None:
     planning, _, _ = _planning()
     rewards = np.array([1.0, 2.0, 3.0, -1.0, 0.5])
+    planning.returns = []
     planning.open_episode(1)
     planning.close_episode(rewards[:3])
     planning.open_episode(3)
@@ -38,12 +43,18 @@ def test_an_episode_run_by_the_policy_adds_its_return() -> None:
     planning.close_episode(rewards)  # closed already: nothing more
     assert planning.returns == [5.0, -0.5]
     unsearched = FeedbackPlanning(2, LOW, HIGH, horizon=10, real_test=True)
-    unsearched.open_episode(0)  # no policy runs it
-    unsearched.close_episode(rewards)
-    assert unsearched.returns == [] and unsearched.due(0)
+    for _ in range(TEST_EPISODES):  # Q runs them, and the first search waits for them
+        assert not unsearched.due(0)
+        unsearched.open_episode(0)
+        unsearched.close_episode(rewards)
+    assert unsearched.returns == [5.5] * TEST_EPISODES and unsearched.due(0)
+    untested = FeedbackPlanning(2, LOW, HIGH, horizon=10)
+    untested.open_episode(0)  # neither a test nor a policy: not recorded
+    untested.close_episode(rewards)
+    assert untested.returns == [] and untested.due(0)
 
 
-def test_a_search_waits_for_the_current_weights_episodes() -> None:
+def test_a_search_waits_for_the_current_actors_episodes() -> None:
     planning, _, _ = _planning()
     planning.returns = [1.0] * (TEST_EPISODES - 1)
     assert not planning.due(SEARCH_EVERY)
@@ -64,7 +75,7 @@ def test_weights_worse_on_the_task_give_way_to_those_before(trial: list, kept: b
     hand (before: -1.0, -1.2, -0.9)."""
     planning, model, rng = _planning()
     before = planning.gains.copy()
-    planning.kept = (before, -3.0, [-1.0, -1.2, -0.9])
+    planning.kept = (before, -3.0, [-1.0, -1.2, -0.9], True)
     tried = before + 0.1
     planning.gains, planning.returns = tried, list(trial)
     old, new = np.array([-1.0, -1.2, -0.9]), np.array(trial)
@@ -73,7 +84,28 @@ def test_weights_worse_on_the_task_give_way_to_those_before(trial: list, kept: b
     planning.search(model, 200, rng)  # no Adam step: the search keeps what it starts from
     assert planning.kept is None
     np.testing.assert_array_equal(planning.gains, tried if kept else before)
-    assert planning.returns == (trial if kept else [-1.0, -1.2, -0.9])
+    assert planning.returns == (trial if kept else [-1.0, -1.2, -0.9]) and planning.acting
+
+
+@pytest.mark.parametrize("kept", [False, True])
+def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
+    """The first weights a search puts in place are on trial against ``Q``'s episodes;
+    if they lose, ``Q`` acts again, until a search finds other weights."""
+    planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
+    _, model, rng = _planning()
+    planning.starts = rng.uniform(-0.5, 0.5, (8, 2))
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
+    q_returns = [-2.0, -2.5]
+    planning.returns = list(q_returns)
+    planning.search(model, 0, rng)
+    assert planning.acting and planning.kept is not None and planning.kept[3] is False
+    first, tried = planning.kept[0], planning.gains.copy()
+    planning.returns = [-2.2, -2.4] if kept else [-9.0, -8.0]
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
+    planning.search(model, SEARCH_EVERY, rng)  # judged, then searched with no Adam step
+    assert planning.kept is None and planning.acting is kept
+    np.testing.assert_array_equal(planning.gains, tried if kept else first)
+    assert planning.returns == ([-2.2, -2.4] if kept else q_returns)
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:
@@ -85,4 +117,4 @@ def test_weights_a_search_replaces_go_on_trial() -> None:
     assert not np.array_equal(planning.gains, before)  # the search moved them
     assert planning.kept is not None and planning.returns == []
     np.testing.assert_array_equal(planning.kept[0], before)
-    assert planning.kept[2] == [-2.0, -2.5]
+    assert planning.kept[2] == [-2.0, -2.5] and planning.kept[3] is True

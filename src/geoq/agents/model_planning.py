@@ -78,9 +78,9 @@ class ModelPlanning:
     @property
     def active(self) -> bool:
         """Whether actions are planned now (a planner chosen and a model fitted; with
-        ``policy`` or ``policy-net``, a policy searched)."""
+        ``policy`` or ``policy-net``, a policy searched that acts, not ``Q``)."""
         if self.policy_mode:
-            return self.feedback.policy is not None
+            return self.feedback.policy is not None and self.feedback.acting
         return self.mode != "off" and self.model.fitted
 
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:

@@ -14,13 +14,16 @@ fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule. Trainin
 actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
 
-``policy-net`` also tests what a search found on the task itself (``real_test``): a
-search is due only once the current weights have run :data:`TEST_EPISODES` episodes,
-and weights that replaced others are kept only if their episodes' returns (an
-episode cut short by ``learn``'s budget counts with the return it had) are not below
-the weights' before by more than :data:`~geoq.models.policy_search.HOLDOUT_SE`
-standard errors of the difference of the means; else those come back, and the next
-search starts from them with the data the failed ones brought.
+``policy-net`` also tests what a search found on the task itself (``real_test``),
+against whatever acted before it, the agent's own ``Q`` included: a search is due only
+once the current actor (``Q`` before the first search) has run :data:`TEST_EPISODES`
+episodes, and weights a search put in place keep acting only if their episodes'
+returns (an episode cut short by ``learn``'s budget counts with the return it had) are
+not below the returns of the actor they replaced by more than
+:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference of the
+means; else that actor comes back (the weights before, or ``Q``), and the next search
+starts from the weights before with the data the failed ones brought. A search that
+keeps the weights it starts from changes no actor.
 """
 
 from __future__ import annotations
@@ -64,15 +67,16 @@ class FeedbackPlanning:
     network's ``[n_params]``) and score ``value`` (nan before), and ``searched_at``
     (transitions stored at the last search); with ``real_test`` (module docstring), the
     returns of the episodes run with the current weights ``returns``, the weights they
-    replaced, their score and returns ``kept`` (None: none on trial), and the first
-    transition of the running episode ``episode_from`` (-1: not run by a policy)."""
+    replaced, their score and returns and whether they acted ``kept`` (None: none on
+    trial), whether the policy acts (``acting``; else ``Q`` does), and the first
+    transition of the running episode ``episode_from`` (-1: none recorded)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
                  net: bool = False, real_test: bool = False):  # fmt: skip
         self.low, self.high, self.net, self.real_test = low, high, net, real_test
         self.returns: list[float] = []
-        self.kept: tuple[FloatArray, float, list[float]] | None = None
-        self.episode_from = -1
+        self.kept: tuple[FloatArray, float, list[float], bool] | None = None
+        self.episode_from, self.acting = -1, False
         self.settings = PolicySearchSettings(horizon=horizon)
         self.gradient_settings = PolicyGradientSettings(horizon=horizon)
         self.starts = np.zeros((0, obs_dim))
@@ -82,32 +86,31 @@ class FeedbackPlanning:
 
     def due(self, n: int) -> bool:
         """Whether a search is due with ``n`` transitions stored."""
-        if self.policy is None:
-            return True
         tested = not self.real_test or len(self.returns) >= TEST_EPISODES
-        return tested and n - self.searched_at >= SEARCH_EVERY
+        return tested and (self.policy is None or n - self.searched_at >= SEARCH_EVERY)
 
     def close_episode(self, rewards: FloatArray) -> None:
-        """The episode before the stored transitions' rewards ``rewards`` [n] ends: if a
-        policy ran it, its return joins ``returns``."""
+        """The episode before the stored transitions' rewards ``rewards`` [n] ends: if it
+        was recorded, its return joins ``returns``."""
         if self.episode_from >= 0 and len(rewards) > self.episode_from:
             self.returns.append(float(rewards[self.episode_from :].sum()))
         self.episode_from = -1
 
     def open_episode(self, n: int) -> None:
-        """An episode starts after ``n`` stored transitions (run by the policy, if any)."""
-        self.episode_from = n if self.policy is not None else -1
+        """An episode starts after ``n`` stored transitions: recorded with ``real_test``
+        (whoever acts), else if the policy acts."""
+        self.episode_from = n if self.real_test or self.acting else -1
 
     def _judge(self) -> None:
         """Keep the weights on trial, or bring back those they replaced (module docstring)."""
         if self.kept is None:
             return
-        gains, value, returns = self.kept
+        gains, value, returns, acting = self.kept
         new, old = np.array(self.returns), np.array(returns)
         if len(new) >= 2 and len(old) >= 2:
             se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
             if new.mean() < old.mean() - HOLDOUT_SE * se:
-                self.gains, self.value, self.returns = gains, value, returns
+                self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
         self.kept = None
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
@@ -123,7 +126,7 @@ class FeedbackPlanning:
                 self.gains = self.policy.initial(rng)
         elif self.real_test:
             self._judge()
-        before = (self.gains, self.value, self.returns)
+        before = (self.gains, self.value, self.returns, self.acting)
         if isinstance(self.policy, MLPFeedback):
             self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
                                                    rng, self.gradient_settings)  # fmt: skip
@@ -131,12 +134,14 @@ class FeedbackPlanning:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip
         self.searched_at = n
-        if self.real_test and len(before[2]) and not np.array_equal(self.gains, before[0]):
-            self.kept, self.returns = before, []
+        if not self.real_test:
+            self.acting = True
+        elif not np.array_equal(self.gains, before[0]):
+            self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
         """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
-        assert self.policy is not None
+        assert self.policy is not None and self.acting
         a = self.policy.act(self.gains, s)
         if rng is None:
             return a
@@ -145,21 +150,26 @@ class FeedbackPlanning:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The starts, and once searched the policy, its gains and their score, the real
-        returns and the running episode's start, and the weights on trial replaced."""
-        arrays: dict[str, Any] = {"policy_starts": self.starts}
+        """The starts, the real returns and the running episode's start, and once searched
+        the policy, its gains and their score, whether it acts, and the actor on trial
+        replaced."""
+        arrays: dict[str, Any] = {
+            "policy_starts": self.starts,
+            "policy_returns": np.array(self.returns, dtype=np.float64),
+            "policy_episode_from": np.array(self.episode_from),
+        }
         if self.policy is not None:
             arrays |= {
                 "policy_center": self.policy.center, "policy_scale": self.policy.scale,
                 "policy_gains": self.gains, "policy_value": np.array(self.value),
                 "policy_searched_at": np.array(self.searched_at),
-                "policy_returns": np.array(self.returns, dtype=np.float64),
-                "policy_episode_from": np.array(self.episode_from),
+                "policy_acting": np.array(self.acting),
             }  # fmt: skip
         if self.kept is not None:
-            gains, value, returns = self.kept
+            gains, value, returns, acting = self.kept
             arrays |= {"policy_kept_gains": gains, "policy_kept_value": np.array(value),
-                       "policy_kept_returns": np.array(returns, dtype=np.float64)}  # fmt: skip
+                       "policy_kept_returns": np.array(returns, dtype=np.float64),
+                       "policy_kept_acting": np.array(acting)}  # fmt: skip
         return arrays
 
     def restore(self, a: dict[str, Any]) -> None:
@@ -170,18 +180,20 @@ class FeedbackPlanning:
         if not np.all(np.isfinite(starts)):
             raise ValueError("policy_starts must be finite")
         self.starts = starts
+        self.returns = list(_finite(a.get("policy_returns", []), "policy_returns", None))
+        self.episode_from = int(a.get("policy_episode_from", -1))
         if "policy_gains" not in a:
             return
         policy = self._make(a["policy_center"], a["policy_scale"])
         shape = (policy.n_params,) if isinstance(policy, MLPFeedback) else policy.shape
         self.policy, self.gains = policy, _finite(a["policy_gains"], "policy_gains", shape)
         self.value, self.searched_at = float(a["policy_value"]), int(a["policy_searched_at"])
-        self.returns = list(_finite(a.get("policy_returns", []), "policy_returns", None))
-        self.episode_from = int(a.get("policy_episode_from", -1))
+        self.acting = _flag(a.get("policy_acting", True), "policy_acting")
         if "policy_kept_gains" in a:
             kept = _finite(a["policy_kept_gains"], "policy_kept_gains", shape)
             returns = _finite(a["policy_kept_returns"], "policy_kept_returns", None)
-            self.kept = (kept, float(a["policy_kept_value"]), list(returns))
+            acting = _flag(a.get("policy_kept_acting", True), "policy_kept_acting")
+            self.kept = (kept, float(a["policy_kept_value"]), list(returns), acting)
 
 
 def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:
@@ -192,3 +204,11 @@ def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:
     ):
         raise ValueError(f"{name} must be finite of shape {shape or '[N]'}, got {array.shape}")
     return array
+
+
+def _flag(value: Any, name: str) -> bool:
+    """``value`` as a bool, from a 0-d boolean array or a bool, else ``ValueError``."""
+    array = np.asarray(value)
+    if array.shape != () or array.dtype != np.bool_:
+        raise ValueError(f"{name} must be one boolean, got {array.dtype}, shape {array.shape}")
+    return bool(array)

@@ -32,25 +32,30 @@ def _planning() -> tuple[FeedbackPlanning, GPDynamicsModel, np.random.Generator]
     return planning, model, rng
 
 
-def test_an_episode_adds_its_return_whoever_acts() -> None:
+def test_an_episode_adds_its_return_over_the_horizon_whoever_acts() -> None:
+    """Oracle: the sums by hand; an episode that did not end in a termination within the
+    horizon (10 steps) is rescaled from its steps to the horizon's."""
     planning, _, _ = _planning()
-    rewards = np.array([1.0, 2.0, 3.0, -1.0, 0.5])
+    rewards = np.array([1.0, 2.0, 3.0, -1.0, 0.5] + [1.0] * 10)
+    ended = np.zeros(len(rewards), dtype=bool)
     planning.returns = []
     planning.open_episode(1)
-    planning.close_episode(rewards[:3])
+    planning.close_episode(rewards[:3], ended[:3])  # cut after 2 steps: 5 * 10 / 2
     planning.open_episode(3)
-    planning.close_episode(rewards)
-    planning.close_episode(rewards)  # closed already: nothing more
-    assert planning.returns == [5.0, -0.5]
-    unsearched = FeedbackPlanning(2, LOW, HIGH, horizon=10, real_test=True)
+    planning.close_episode(rewards[:5], ended[:5] | (np.arange(5) == 4))  # a termination
+    planning.close_episode(rewards[:5], ended[:5])  # closed already: nothing more
+    planning.open_episode(3)
+    planning.close_episode(rewards, ended | True)  # a termination, after 12 steps
+    assert planning.returns == [25.0, -0.5, 9.5 * 10 / 12]
+    unsearched = FeedbackPlanning(2, LOW, HIGH, horizon=5, real_test=True)
     for _ in range(TEST_EPISODES):  # Q runs them, and the first search waits for them
         assert not unsearched.due(0)
         unsearched.open_episode(0)
-        unsearched.close_episode(rewards)
+        unsearched.close_episode(rewards[:5], ended[:5])
     assert unsearched.returns == [5.5] * TEST_EPISODES and unsearched.due(0)
-    untested = FeedbackPlanning(2, LOW, HIGH, horizon=10)
+    untested = FeedbackPlanning(2, LOW, HIGH, horizon=5)
     untested.open_episode(0)  # neither a test nor a policy: not recorded
-    untested.close_episode(rewards)
+    untested.close_episode(rewards[:5], ended[:5])
     assert untested.returns == [] and untested.due(0)
 
 
@@ -118,3 +123,26 @@ def test_weights_a_search_replaces_go_on_trial() -> None:
     assert planning.kept is not None and planning.returns == []
     np.testing.assert_array_equal(planning.kept[0], before)
     assert planning.kept[2] == [-2.0, -2.5] and planning.kept[3] is True
+
+
+def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
+    """While ``Q`` acts, found weights go on trial only where the model's return for them
+    beats the mean of ``Q``'s returns; else ``Q`` acts on, and the next search starts
+    from them."""
+    planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
+    _, model, rng = _planning()
+    planning.starts = rng.uniform(-0.5, 0.5, (8, 2))
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
+    planning.returns = [0.0, 0.0]  # no cost at all: better than any policy can do
+    planning.search(model, 0, rng)
+    assert planning.value < 0.0 and planning.policy is not None
+    assert not planning.acting and planning.kept is None and planning.returns == [0.0, 0.0]
+    found = planning.gains.copy()
+    planning.returns = [planning.value - 1.0, planning.value - 1.5]
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
+    planning.search(model, SEARCH_EVERY, rng)  # no Adam step: the same weights, expected better
+    assert not planning.acting  # the weights did not move: no trial either
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
+    planning.search(model, 2 * SEARCH_EVERY, rng)
+    assert planning.acting and planning.kept is not None and planning.kept[3] is False
+    np.testing.assert_array_equal(planning.kept[0], found)

@@ -109,7 +109,8 @@ class ModelPlanning:
             return
         self.feedback.starts = np.vstack([self.feedback.starts, s])
         n = len(buffer)
-        self.feedback.close_episode(buffer.arrays()[2])
+        rewards, terminated = buffer.arrays()[2::2]
+        self.feedback.close_episode(rewards, terminated)
         if n >= self.first_fit and self.feedback.due(n):
             if self.mode == "policy" or not self.model.fitted:
                 self._fit(buffer, rng)

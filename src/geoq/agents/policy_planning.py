@@ -15,15 +15,18 @@ actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
 
 ``policy-net`` also tests what a search found on the task itself (``real_test``),
-against whatever acted before it, the agent's own ``Q`` included: a search is due only
-once the current actor (``Q`` before the first search) has run :data:`TEST_EPISODES`
-episodes, and weights a search put in place keep acting only if their episodes'
-returns (an episode cut short by ``learn``'s budget counts with the return it had) are
-not below the returns of the actor they replaced by more than
-:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference of the
-means; else that actor comes back (the weights before, or ``Q``), and the next search
-starts from the weights before with the data the failed ones brought. A search that
-keeps the weights it starts from changes no actor.
+against whatever acted before it, the agent's own ``Q`` included. Each episode's return
+is recorded over the search's horizon: as it was where the episode ended in a
+termination within the horizon, else rescaled from the steps it ran to the horizon's
+(an episode cut short by ``learn``'s budget, or longer than the horizon). A search is
+due only once the current actor (``Q`` before the first search) has run
+:data:`TEST_EPISODES` episodes. Weights found while ``Q`` acts replace it only where the
+model's return for them beats the mean of ``Q``'s; weights a search put in place keep
+acting only if their episodes' returns are not below the returns of the actor they
+replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of
+the difference of the means; else that actor comes back (the weights before, or
+``Q``), and the next search starts from the weights before with the data the failed
+ones brought. A search that keeps the weights it starts from changes no actor.
 """
 
 from __future__ import annotations
@@ -89,11 +92,21 @@ class FeedbackPlanning:
         tested = not self.real_test or len(self.returns) >= TEST_EPISODES
         return tested and (self.policy is None or n - self.searched_at >= SEARCH_EVERY)
 
-    def close_episode(self, rewards: FloatArray) -> None:
-        """The episode before the stored transitions' rewards ``rewards`` [n] ends: if it
-        was recorded, its return joins ``returns``."""
-        if self.episode_from >= 0 and len(rewards) > self.episode_from:
-            self.returns.append(float(rewards[self.episode_from :].sum()))
+    @property
+    def horizon(self) -> int:
+        """Model steps a search scores its policies over."""
+        return self.gradient_settings.horizon if self.net else self.settings.horizon
+
+    def close_episode(self, rewards: FloatArray, terminated: np.ndarray) -> None:
+        """The episode before the stored transitions' rewards ``rewards`` [n] and
+        termination flags ``terminated`` [n] ends: if it was recorded, its return over
+        the horizon (module docstring) joins ``returns``."""
+        steps = len(rewards) - self.episode_from
+        if self.episode_from >= 0 and steps > 0:
+            ret = float(rewards[self.episode_from :].sum())
+            if not (terminated[-1] and steps <= self.horizon):
+                ret *= self.horizon / steps
+            self.returns.append(ret)
         self.episode_from = -1
 
     def open_episode(self, n: int) -> None:
@@ -134,9 +147,10 @@ class FeedbackPlanning:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip
         self.searched_at = n
+        promising = before[3] or (len(before[2]) > 0 and self.value > np.mean(before[2]))
         if not self.real_test:
             self.acting = True
-        elif not np.array_equal(self.gains, before[0]):
+        elif promising and not np.array_equal(self.gains, before[0]):
             self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:

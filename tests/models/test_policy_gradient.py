@@ -3,6 +3,8 @@ smooth return against the exact roll-outs, and the search against LQR."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,6 +15,7 @@ from geoq.models import (
     MLPFeedback,
     ModelSettings,
     PolicyGradientSettings,
+    policy_gradient,
     rollout_returns,
     search_policy,
     soft_return,
@@ -167,6 +170,29 @@ def test_the_current_weights_stay_unless_beaten_and_the_same_seed_searches_alike
     runs = [search_policy(model, policy, start, STARTS, np.random.default_rng(6), search)
             for _ in range(2)]  # fmt: skip
     assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1] == runs[1][1]
+
+
+def test_the_search_stops_where_the_gradients_square_overflows(monkeypatch) -> None:
+    """A gradient of 1e200 (its square overflows) stops the Adam steps, with no warning,
+    at the best weights before it."""
+    rng = np.random.default_rng(5)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=4)
+    start = policy.initial(rng)
+    seen: list[np.ndarray] = []
+
+    def huge_later(model, policy, theta, picked, normals):  # type: ignore[no-untyped-def]
+        seen.append(theta.copy())
+        grad = np.full(policy.n_params, 1.0 if len(seen) < 3 else 1e200)
+        return float(len(seen)), grad
+
+    monkeypatch.setattr(policy_gradient, "soft_return", huge_later)
+    search = PolicyGradientSettings(horizon=20, particles=4, steps=10, holdout_particles=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        params, _ = search_policy(model, policy, start, STARTS, rng, search)
+    assert len(seen) == 3  # the third gradient stopped the steps
+    assert np.array_equal(params, start) or np.array_equal(params, seen[1])
 
 
 def test_bad_settings_and_shapes_are_refused() -> None:

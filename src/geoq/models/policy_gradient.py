@@ -23,7 +23,9 @@ a halt is paid the least reward seen for the steps left, as there.
 keeps the result only if it also beats the current policy on the exact returns of
 fresh starts (:func:`~geoq.models.rollout_returns`, whose ends are the termination
 output above 1/2), by :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of
-the paired differences.
+the paired differences. The steps stop where the gradient (or its square) overflows:
+through long roll-outs of a model whose steps stretch the states, the return can be
+chaotic in the weights, its gradient astronomically large and no guide.
 """
 
 from __future__ import annotations
@@ -202,12 +204,14 @@ def search_policy(
     beta1, beta2 = 0.9, 0.999
     for k in range(1, c.steps + 1):
         value, grad = soft_return(model, policy, theta, picked, normals)
-        if not (np.isfinite(value) and np.all(np.isfinite(grad))):
+        with np.errstate(over="ignore"):  # a return chaotic in the weights: stop there
+            square = grad * grad
+        if not (np.isfinite(value) and np.all(np.isfinite(square))):
             break
         if value > best_value:
             best, best_value = theta.copy(), value
         m = beta1 * m + (1 - beta1) * grad
-        v = beta2 * v + (1 - beta2) * grad**2
+        v = beta2 * v + (1 - beta2) * square
         step = (m / (1 - beta1**k)) / (np.sqrt(v / (1 - beta2**k)) + 1e-8)
         theta = theta + c.learning_rate * step
     picked = starts[rng.integers(len(starts), size=c.holdout_particles)]

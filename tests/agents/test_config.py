@@ -161,6 +161,7 @@ def test_defaults_resolve_as_pinned_on_every_task(kernel: str, max_bv: int | Non
 def test_the_bundled_tasks_resolve_as_pinned(env_id: str, hyperparameters: str, prior: str) -> None:
     c = GPQAgent(env_id, max_bv=10).config
     assert (c.hyperparameters, c.prior, c.lengthscale) == (hyperparameters, prior, None)
+    assert c.planner == "off"
 
 
 @FUZZ
@@ -179,6 +180,10 @@ def test_defaults_resolve_by_the_coverage_of_the_default_rule(
     fit = not covered and kernel == "euclidean"
     assert c.hyperparameters == ("evidence" if fit else "rule")
     assert c.prior == ("optimistic" if covered else "empirical")
+    assert c.planner == ("off" if covered else "policy-net")
+    assert c.for_dims(obs_dim, action_dim) == c
+    chosen = GPQConfig(kernel=kernel, max_bv=max_bv, planner="off").for_dims(obs_dim, action_dim)  # type: ignore[arg-type]
+    assert chosen.planner == "off"
 
 
 LENGTHSCALES = st.floats(1e-3, 10.0)
@@ -250,6 +255,8 @@ def test_an_agent_resolves_auto_once_and_saves_the_choice(tmp_path: Path) -> Non
     loaded = GPQAgent.load(tmp_path / "agent.npz", env=PointToGoalWithDistractors(extra=4))
     assert loaded.config == agent.config
     assert GPQAgent(PointToGoal(), max_bv=60).config.hyperparameters == "rule"
+    assert agent.config.planner == loaded.config.planner == "policy-net"
+    assert GPQAgent(PointToGoal(), max_bv=60).config.planner == "off"
 
 
 def test_numpy_scalars_become_python_numbers_and_the_agent_saves(tmp_path: Path) -> None:

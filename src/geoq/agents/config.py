@@ -53,8 +53,8 @@ Prior = Literal["auto", "midrange", "optimistic", "empirical"]
 PRIORS: tuple[str, ...] = ("auto", "midrange", "optimistic", "empirical")
 Replay = Literal["uniform", "none", "graph"]
 REPLAYS: tuple[str, ...] = ("uniform", "none", "graph")
-Planner = Literal["off", "cem", "cem-q", "policy", "policy-net"]
-PLANNERS: tuple[str, ...] = ("off", "cem", "cem-q", "policy", "policy-net")
+Planner = Literal["off", "auto", "cem", "cem-q", "policy", "policy-net"]
+PLANNERS: tuple[str, ...] = ("off", "auto", "cem", "cem-q", "policy", "policy-net")
 #: ``policy_horizon``'s most when the task's time limit sets it.
 POLICY_HORIZON_CAP = 1000
 Hyperparameters = Literal["auto", "rule", "evidence"]
@@ -225,14 +225,18 @@ class GPQConfig:
     pendulums, the mountain car: their agents are unchanged); ``on``: always; ``off``:
     never. With a map, training actions follow its explore plan and greedy actions its
     exploit plan where it knows a route to a termination (the GP's elsewhere)."""
-    planner: Planner = "off"
+    planner: Planner = "auto"
     """``cem``: learn a GP model of the task's steps and act by planning through it over
     a short horizon (:mod:`geoq.agents.model_planning`); ``cem-q``: the same, the plans
     closed by the agent's ``Q``; ``policy``: act with a linear feedback policy searched
     through the model over a long horizon, again each episode (PILCO's loop,
     :mod:`geoq.agents.policy_planning`); ``policy-net``: the same with a neural policy
-    searched by gradients; ``off``: act on ``Q`` alone. Where both a map and
-    a planner would act, the map's plan comes first."""
+    searched by gradients; ``off``: act on ``Q`` alone; ``auto`` (resolved by
+    :meth:`for_dims`): ``off`` where the rule's length-scales let the default budget cover
+    the input box (as ``prior``'s ``auto``: the tasks ``Q`` alone learns, the pendulums,
+    the mountain car, TwoRooms), ``policy-net`` where they cannot (where its searched
+    policies do not pay on the task, ``Q`` acts: :mod:`geoq.agents.policy_planning`).
+    Where both a map and a planner would act, the map's plan comes first."""
     policy_horizon: int | None = None
     """Model steps a ``policy`` or ``policy-net`` search scores its policies over (undiscounted);
     None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (1,000 without one)."""
@@ -306,8 +310,8 @@ class GPQConfig:
         (and episodes of at most ``time_limit`` steps, None: unknown): ``max_bv`` resolved
         (:func:`default_max_bv`), ``policy_horizon`` resolved from ``time_limit`` (capped
         at :data:`POLICY_HORIZON_CAP`), ``lengthscale``'s length checked, and
-        ``hyperparameters`` and ``prior`` resolved where ``auto``: by whether the rule's
-        length-scales let the dimension's default budget cover the input box
+        ``hyperparameters``, ``prior`` and ``planner`` resolved where ``auto``: by whether
+        the rule's length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
         speed, does not change how the agent learns); ``hyperparameters`` to ``rule``
         wherever length-scales were given (:meth:`lengthscales_given`). A resolved
@@ -328,9 +332,12 @@ class GPQConfig:
             hyperparameters = "rule" if rule_kept else "evidence"
         if prior == "auto":
             prior = "optimistic" if covered else "empirical"
+        planner = self.planner
+        if planner == "auto":
+            planner = "off" if covered else "policy-net"
         horizon = self.policy_horizon or min(time_limit or POLICY_HORIZON_CAP, POLICY_HORIZON_CAP)
         return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior,
-                       policy_horizon=horizon)  # fmt: skip
+                       planner=planner, policy_horizon=horizon)  # fmt: skip
 
     def lengthscales_given(self) -> bool:
         """Whether the user chose the squared exponential's length-scales: ``lengthscale``

@@ -65,7 +65,11 @@ def test_a_search_waits_for_the_current_actors_episodes() -> None:
     assert not planning.due(SEARCH_EVERY)
     planning.returns.append(1.0)
     assert planning.due(SEARCH_EVERY) and not planning.due(SEARCH_EVERY - 1)
-    planning.real_test = False
+    planning.acting, planning.searched_at = False, 3 * SEARCH_EVERY  # Q acts on: data double
+    assert not planning.due(6 * SEARCH_EVERY - 1) and planning.due(6 * SEARCH_EVERY)
+    planning.searched_at = 0
+    assert not planning.due(SEARCH_EVERY - 1) and planning.due(SEARCH_EVERY)
+    planning.real_test, planning.acting = False, True
     planning.returns = []
     assert planning.due(SEARCH_EVERY)
 

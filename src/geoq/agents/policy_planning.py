@@ -26,7 +26,10 @@ acting only if their episodes' returns are not below the returns of the actor th
 replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of
 the difference of the means; else that actor comes back (the weights before, or
 ``Q``), and the next search starts from the weights before with the data the failed
-ones brought. A search that keeps the weights it starts from changes no actor.
+ones brought. A search that keeps the weights it starts from changes no actor. While
+``Q`` acts after a search, the next waits until the transitions have doubled (as the
+model's fits do): a model that expected less than ``Q`` from its best weights is asked
+again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -90,7 +93,11 @@ class FeedbackPlanning:
     def due(self, n: int) -> bool:
         """Whether a search is due with ``n`` transitions stored."""
         tested = not self.real_test or len(self.returns) >= TEST_EPISODES
-        return tested and (self.policy is None or n - self.searched_at >= SEARCH_EVERY)
+        if self.policy is None:
+            return tested
+        # Q acts after a search that kept it: ask again once the data have doubled
+        wait = SEARCH_EVERY if self.acting else max(SEARCH_EVERY, self.searched_at)
+        return tested and n - self.searched_at >= wait
 
     @property
     def horizon(self) -> int:

@@ -34,19 +34,22 @@ def _planning() -> tuple[FeedbackPlanning, GPDynamicsModel, np.random.Generator]
 
 def test_an_episode_adds_its_return_over_the_horizon_whoever_acts() -> None:
     """Oracle: the sums by hand; an episode that did not end in a termination within the
-    horizon (10 steps) is rescaled from its steps to the horizon's."""
+    horizon (10 steps) is rescaled from its steps to the horizon's, and not recorded if
+    it was cut before half of it."""
     planning, _, _ = _planning()
     rewards = np.array([1.0, 2.0, 3.0, -1.0, 0.5] + [1.0] * 10)
     ended = np.zeros(len(rewards), dtype=bool)
     planning.returns = []
     planning.open_episode(1)
-    planning.close_episode(rewards[:3], ended[:3])  # cut after 2 steps: 5 * 10 / 2
+    planning.close_episode(rewards[:3], ended[:3])  # cut after 2 steps: not recorded
     planning.open_episode(3)
     planning.close_episode(rewards[:5], ended[:5] | (np.arange(5) == 4))  # a termination
     planning.close_episode(rewards[:5], ended[:5])  # closed already: nothing more
     planning.open_episode(3)
     planning.close_episode(rewards, ended | True)  # a termination, after 12 steps
-    assert planning.returns == [25.0, -0.5, 9.5 * 10 / 12]
+    planning.open_episode(0)
+    planning.close_episode(rewards[:5], ended[:5])  # cut after 5 steps: 5.5 * 10 / 5
+    assert planning.returns == [-0.5, 9.5 * 10 / 12, 11.0]
     unsearched = FeedbackPlanning(2, LOW, HIGH, horizon=5, real_test=True)
     for _ in range(TEST_EPISODES):  # Q runs them, and the first search waits for them
         assert not unsearched.due(0)

@@ -18,7 +18,9 @@ actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 against whatever acted before it, the agent's own ``Q`` included. Each episode's return
 is recorded over the search's horizon: as it was where the episode ended in a
 termination within the horizon, else rescaled from the steps it ran to the horizon's
-(an episode cut short by ``learn``'s budget, or longer than the horizon). A search is
+(an episode cut short by ``learn``'s budget, or longer than the horizon), but not at
+all where it was cut before half the horizon (what it would have returned is then
+more guess than measure: a pole alive after one step is not one that balances). A search is
 due only once the current actor (``Q`` before the first search) has run
 :data:`TEST_EPISODES` episodes. Weights found while ``Q`` acts replace it only where the
 model's return for them beats the mean of ``Q``'s; weights a search put in place keep
@@ -108,12 +110,11 @@ class FeedbackPlanning:
         """The episode before the stored transitions' rewards ``rewards`` [n] and
         termination flags ``terminated`` [n] ends: if it was recorded, its return over
         the horizon (module docstring) joins ``returns``."""
-        steps = len(rewards) - self.episode_from
-        if self.episode_from >= 0 and steps > 0:
+        steps = len(rewards) - self.episode_from if self.episode_from >= 0 else 0
+        ended = steps > 0 and bool(terminated[-1]) and steps <= self.horizon
+        if steps > 0 and (ended or 2 * steps >= self.horizon):
             ret = float(rewards[self.episode_from :].sum())
-            if not (terminated[-1] and steps <= self.horizon):
-                ret *= self.horizon / steps
-            self.returns.append(ret)
+            self.returns.append(ret if ended else ret * self.horizon / steps)
         self.episode_from = -1
 
     def open_episode(self, n: int) -> None:

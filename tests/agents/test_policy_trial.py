@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from geoq.agents.policy_planning import (
-    EXPLORATION,
     SEARCH_EVERY,
     TEST_EPISODES,
     FeedbackPlanning,
@@ -221,29 +220,3 @@ def test_a_probe_judges_the_weights_on_trial_first(before_acting: bool) -> None:
     np.testing.assert_array_equal(planning.gains, before)
     expected = [-1.0, -1.2, -0.9] + ([] if before_acting else [-1.5, -1.4])
     assert planning.returns == expected
-
-
-@pytest.mark.parametrize("before_acting", [True, False])
-def test_greedy_actions_stay_the_replaced_actors_until_the_trial_is_judged(
-    before_acting: bool,
-) -> None:
-    """Training actions are the weights on trial's; greedy ones those of the actor they
-    replaced (the weights before, or ``Q``: no greedy action of the policy's)."""
-    planning, _, _ = _planning()
-    before = planning.gains.copy()
-    planning.kept = (before, -3.0, [-1.0, -1.2], before_acting)
-    planning.gains = before + 0.1
-    s = np.array([[0.3, -0.2]])
-    assert planning.greedy_acting is before_acting
-    if before_acting:
-        np.testing.assert_array_equal(planning.action(s, None), planning.policy.act(before, s))
-    else:
-        with pytest.raises(AssertionError):
-            planning.action(s, None)
-    trial = planning.policy.act(before + 0.1, s)
-    noise = EXPLORATION * planning.policy.half * np.random.default_rng(0).standard_normal((1, 1))
-    np.testing.assert_array_equal(
-        planning.action(s, np.random.default_rng(0)), np.clip(trial + noise, LOW, HIGH)
-    )
-    planning.kept = None  # judged: the weights kept are greedy's too
-    np.testing.assert_array_equal(planning.action(s, None), trial)

@@ -77,22 +77,17 @@ class ModelPlanning:
 
     @property
     def active(self) -> bool:
-        """Whether greedy actions are planned now (a planner chosen and a model fitted;
-        with ``policy`` or ``policy-net``, a searched policy that has acted on the task,
-        not ``Q``: :attr:`~geoq.agents.policy_planning.FeedbackPlanning.greedy_acting`)."""
+        """Whether actions are planned now (a planner chosen and a model fitted; with
+        ``policy`` or ``policy-net``, a policy searched that acts, not ``Q``)."""
         if self.policy_mode:
-            return self.feedback.policy is not None and self.feedback.greedy_acting
+            return self.feedback.policy is not None and self.feedback.acting
         return self.mode != "off" and self.model.fitted
 
     @property
     def trains(self) -> bool:
-        """Whether training actions are planned now: as :attr:`active`, but with
-        ``policy-net`` those of the weights on trial, and ``Q``'s in its probe
-        (:mod:`geoq.agents.policy_planning`)."""
-        if self.policy_mode:
-            feedback = self.feedback
-            return feedback.policy is not None and feedback.acting and not feedback.probing
-        return self.active
+        """Whether training actions are planned now: :attr:`active`, but not in ``Q``'s
+        probe (:mod:`geoq.agents.policy_planning`)."""
+        return self.active and not self.feedback.probing
 
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
         """Take in the buffer's newest transition: a fit when one is due, else a stream

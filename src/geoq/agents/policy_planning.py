@@ -15,8 +15,7 @@ actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
 
 ``policy-net`` also tests what a search found on the task itself (``real_test``),
-against whatever acted before it, the agent's own ``Q`` included; until the test is
-judged, greedy actions stay that actor's (they are what the agent has shown). Each episode's return
+against whatever acted before it, the agent's own ``Q`` included. Each episode's return
 is recorded over the search's horizon: as it was where the episode ended in a
 termination within the horizon, else rescaled from the steps it ran to the horizon's
 (an episode cut short by ``learn``'s budget, or longer than the horizon), but not at
@@ -199,21 +198,12 @@ class FeedbackPlanning:
             if not before[3]:  # Q's returns were measured up to here
                 self.q_at = n
 
-    @property
-    def greedy_acting(self) -> bool:
-        """Whether greedy actions are the policy's: while weights are on trial, those of
-        the actor they replaced (it has acted on the task; they have yet to)."""
-        return self.acting if self.kept is None else self.kept[3]
-
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
-        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]: with ``rng``, the current
-        weights' plus the noise; without, the greedy one (:attr:`greedy_acting`)."""
-        assert self.policy is not None
-        if rng is None:
-            assert self.greedy_acting
-            return self.policy.act(self.gains if self.kept is None else self.kept[0], s)
-        assert self.acting
+        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
+        assert self.policy is not None and self.acting
         a = self.policy.act(self.gains, s)
+        if rng is None:
+            return a
         noise = EXPLORATION * self.policy.half * rng.standard_normal(a.shape)
         return np.clip(a + noise, self.low, self.high)
 

@@ -61,7 +61,7 @@ class ModelPlanning:
     def __init__(self, config: GPQConfig, obs_dim: int, low: FloatArray, high: FloatArray):
         self.mode, self.window = config.planner, config.window
         self.policy_mode = self.mode in ("policy", "policy-net")
-        self.first_fit = max(config.warmup_steps, 2)
+        self.first_fit, self.warmup = max(config.warmup_steps, 2), config.warmup_steps
         # a policy's long roll-outs must stop where any state input leaves the data
         settings = ModelSettings(standardised_support=self.policy_mode)
         if self.mode == "policy-net":
@@ -124,7 +124,7 @@ class ModelPlanning:
             if self.mode == "policy" or not self.model.fitted:
                 self._fit(buffer, rng)
             self.feedback.search(self.model, n, rng)
-        self.feedback.open_episode(n)
+        self.feedback.open_episode(n, acted=n >= self.warmup)
 
     def action(
         self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None

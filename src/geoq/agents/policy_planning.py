@@ -36,11 +36,9 @@ again once it has that much more data, not every :data:`SEARCH_EVERY` transition
 ``Q`` keeps learning while a policy acts, so it is asked again: once the transitions
 have doubled since ``Q``'s returns were last measured (``q_at``), the next
 :data:`TEST_EPISODES` training episodes are ``Q``'s (a probe; greedy actions stay the
-policy's). The weights on trial, if any, are judged then; if the acting weights'
-returns are worse than the probe's by more than
-:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors (the test above, the
-other way round), ``Q`` acts again, and the next search starts from those weights,
-behind the gate above.
+policy's). The weights on trial, if any, are judged then; if the probe's mean return
+beats the mean of the acting weights' returns, ``Q`` acts again, and the next search
+starts from those weights, behind the gate above.
 """
 
 from __future__ import annotations
@@ -135,7 +133,7 @@ class FeedbackPlanning:
         self._judge()
         if not self.acting:  # the trial gave way to Q: the probe is more of its returns
             self.returns += probe
-        elif _worse(self.returns, probe):
+        elif np.mean(probe) > np.mean(self.returns):
             self.returns, self.acting = probe, False
 
     @property
@@ -155,18 +153,22 @@ class FeedbackPlanning:
             record.append(ret if ended else ret * self.horizon / steps)
         self.episode_from = -1
 
-    def open_episode(self, n: int) -> None:
+    def open_episode(self, n: int, acted: bool = True) -> None:
         """An episode starts after ``n`` stored transitions: recorded with ``real_test``
-        (whoever acts), else if the policy acts."""
-        self.episode_from = n if self.real_test or self.acting else -1
+        (whoever acts) where its actions are the agent's (``acted``; not the warm-up's),
+        else if the policy acts."""
+        self.episode_from = n if (self.real_test and acted) or self.acting else -1
 
     def _judge(self) -> None:
         """Keep the weights on trial, or bring back those they replaced (module docstring)."""
         if self.kept is None:
             return
         gains, value, returns, acting = self.kept
-        if _worse(self.returns, returns):
-            self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
+        new, old = np.array(self.returns), np.array(returns)
+        if len(new) >= 2 and len(old) >= 2:
+            se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
+            if new.mean() < old.mean() - HOLDOUT_SE * se:
+                self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
         self.kept = None
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
@@ -260,17 +262,6 @@ class FeedbackPlanning:
             returns = _finite(a["policy_kept_returns"], "policy_kept_returns", None)
             acting = _flag(a.get("policy_kept_acting", True), "policy_kept_acting")
             self.kept = (kept, float(a["policy_kept_value"]), list(returns), acting)
-
-
-def _worse(returns: list[float], others: list[float]) -> bool:
-    """Whether the mean of ``returns`` is below that of ``others`` by more than
-    :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of their difference
-    (Welch's; False with fewer than two of either)."""
-    new, old = np.array(returns), np.array(others)
-    if len(new) < 2 or len(old) < 2:
-        return False
-    se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
-    return bool(new.mean() < old.mean() - HOLDOUT_SE * se)
 
 
 def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:

@@ -1,8 +1,7 @@
 """``planner="policy-net"``'s test on the task itself (:mod:`geoq.agents.policy_planning`):
 weights a search put in place run :data:`TEST_EPISODES` episodes, and give way to the
 actor before them (weights, or the agent's ``Q``) if their returns are worse by more
-than two standard errors; ``Q``, learning on meanwhile, is probed again each time the
-transitions have doubled."""
+than two standard errors."""
 
 from __future__ import annotations
 
@@ -110,9 +109,8 @@ def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
     q_returns = [-2.0, -2.5]
     planning.returns = list(q_returns)
-    planning.search(model, 37, rng)
+    planning.search(model, 0, rng)
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
-    assert planning.q_at == 37  # Q's returns were measured up to here
     first, tried = planning.kept[0], planning.gains.copy()
     planning.returns = [-2.2, -2.4] if kept else [-9.0, -8.0]
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
@@ -129,7 +127,7 @@ def test_weights_a_search_replaces_go_on_trial() -> None:
     before = planning.gains.copy()
     planning.search(model, 200, rng)
     assert not np.array_equal(planning.gains, before)  # the search moved them
-    assert planning.kept is not None and planning.returns == [] and planning.q_at == 0
+    assert planning.kept is not None and planning.returns == []
     np.testing.assert_array_equal(planning.kept[0], before)
     assert planning.kept[2] == [-2.0, -2.5] and planning.kept[3] is True
 
@@ -155,67 +153,3 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     planning.search(model, 2 * SEARCH_EVERY, rng)
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
     np.testing.assert_array_equal(planning.kept[0], found)
-
-
-def test_warm_up_episodes_are_not_qs_returns() -> None:
-    """The warm-up's random actions are not ``Q``'s: its episodes are not recorded while
-    ``Q`` acts (a policy's are, whoever started them)."""
-    planning, _, _ = _planning()
-    rewards, ended = np.ones(10), np.ones(10, dtype=bool)
-    planning.returns = []
-    for acting in (False, True):
-        planning.acting = acting
-        planning.open_episode(5, acted=False)
-        planning.close_episode(rewards, ended)
-    assert planning.returns == [5.0]
-
-
-def test_q_is_probed_once_the_transitions_have_doubled() -> None:
-    planning, _, _ = _planning()
-    planning.returns, planning.q_at = [-1.0, -1.2], 100
-    assert not planning.probe_due(199) and planning.probe_due(200)
-    planning.acting = False  # Q acts: nothing to probe
-    assert not planning.probe_due(10**6)
-    planning.acting, planning.returns = True, [-1.0]  # the weights' returns first
-    assert not planning.probe_due(10**6)
-    planning.returns.append(-1.2)
-    planning.real_test = False
-    assert not planning.probe_due(10**6)
-    planning.real_test, planning.probe = True, []
-    assert planning.probing and not planning.probe_due(10**6) and not planning.due(10**6)
-    rewards, ended = np.array([1.0, 2.0, 3.0]), np.ones(3, dtype=bool)
-    planning.open_episode(0)
-    planning.close_episode(rewards, ended)
-    assert planning.probe == [6.0] and planning.returns == [-1.0, -1.2]
-    planning.settle_probe(300)  # one of its episodes: the probe runs on
-    assert planning.probe == [6.0] and planning.q_at == 100
-
-
-@pytest.mark.parametrize(("probe", "q_acts"), [([-0.5, -1.6], True), ([-1.2, -1.2], False)])
-def test_a_probe_that_beats_the_acting_weights_lets_q_act_again(probe: list, q_acts: bool) -> None:
-    """Oracle: the means by hand (the weights': -1.1); the weights stay, for the next
-    search to start from."""
-    planning, _, _ = _planning()
-    weights = planning.gains.copy()
-    planning.returns, planning.probe = [-1.0, -1.2], list(probe)
-    assert (np.mean(probe) > -1.1) == q_acts
-    planning.settle_probe(400)
-    assert planning.probe is None and planning.q_at == 400 and planning.acting is not q_acts
-    assert planning.returns == (probe if q_acts else [-1.0, -1.2])
-    np.testing.assert_array_equal(planning.gains, weights)
-
-
-@pytest.mark.parametrize("before_acting", [True, False])
-def test_a_probe_judges_the_weights_on_trial_first(before_acting: bool) -> None:
-    """Weights on trial that lost to the actor before them give way to it first; the
-    probe is then measured against that actor (``Q`` itself: the probe joins its returns)."""
-    planning, _, _ = _planning()
-    before = planning.gains.copy()
-    planning.kept = (before, -3.0, [-1.0, -1.2, -0.9], before_acting)
-    planning.gains, planning.returns = before + 0.1, [-5.0, -5.5]
-    planning.probe = [-1.5, -1.4]  # beats the weights on trial, not those before them
-    planning.settle_probe(400)
-    assert planning.kept is None and planning.acting is before_acting
-    np.testing.assert_array_equal(planning.gains, before)
-    expected = [-1.0, -1.2, -0.9] + ([] if before_acting else [-1.5, -1.4])
-    assert planning.returns == expected

@@ -265,7 +265,7 @@ class GPQAgent:
             return a
         if q is None:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
-        if self.planning.trains:
+        if self.planning.active:
             return self.planning.action(self, s, self.rng)
         return self._act(*q, self.config.exploration)
 

@@ -61,7 +61,7 @@ class ModelPlanning:
     def __init__(self, config: GPQConfig, obs_dim: int, low: FloatArray, high: FloatArray):
         self.mode, self.window = config.planner, config.window
         self.policy_mode = self.mode in ("policy", "policy-net")
-        self.first_fit, self.warmup = max(config.warmup_steps, 2), config.warmup_steps
+        self.first_fit = max(config.warmup_steps, 2)
         # a policy's long roll-outs must stop where any state input leaves the data
         settings = ModelSettings(standardised_support=self.policy_mode)
         if self.mode == "policy-net":
@@ -83,12 +83,6 @@ class ModelPlanning:
             return self.feedback.policy is not None and self.feedback.acting
         return self.mode != "off" and self.model.fitted
 
-    @property
-    def trains(self) -> bool:
-        """Whether training actions are planned now: :attr:`active`, but not in ``Q``'s
-        probe (:mod:`geoq.agents.policy_planning`)."""
-        return self.active and not self.feedback.probing
-
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
         """Take in the buffer's newest transition: a fit when one is due, else a stream
         (``policy``: neither; the model is refitted at each search, :meth:`start_episode`,
@@ -108,8 +102,8 @@ class ModelPlanning:
     def start_episode(self, s: FloatArray, buffer: TransitionBuffer,
                       rng: np.random.Generator) -> None:  # fmt: skip
         """A new episode from ``s`` [1, d_s]: the training plan's warm start is forgotten;
-        with ``policy`` or ``policy-net``, ``s`` joins the starts, and ``Q``'s probe is
-        settled or started, or else a search is made, where one is due."""
+        with ``policy`` or ``policy-net``, ``s`` joins the starts, and a search is made if
+        one is due."""
         self.training.reset()
         if not self.policy_mode:
             return
@@ -117,14 +111,11 @@ class ModelPlanning:
         n = len(buffer)
         rewards, terminated = buffer.arrays()[2::2]
         self.feedback.close_episode(rewards, terminated)
-        self.feedback.settle_probe(n)
-        if self.feedback.probe_due(n):
-            self.feedback.probe = []
-        elif n >= self.first_fit and self.feedback.due(n):
+        if n >= self.first_fit and self.feedback.due(n):
             if self.mode == "policy" or not self.model.fitted:
                 self._fit(buffer, rng)
             self.feedback.search(self.model, n, rng)
-        self.feedback.open_episode(n, acted=n >= self.warmup)
+        self.feedback.open_episode(n)
 
     def action(
         self, agent: PlanningAgent, s: FloatArray, rng: np.random.Generator | None

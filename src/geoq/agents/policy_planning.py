@@ -32,13 +32,6 @@ ones brought. A search that keeps the weights it starts from changes no actor. W
 ``Q`` acts after a search, the next waits until the transitions have doubled (as the
 model's fits do): a model that expected less than ``Q`` from its best weights is asked
 again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
-
-``Q`` keeps learning while a policy acts, so it is asked again: once the transitions
-have doubled since ``Q``'s returns were last measured (``q_at``), the next
-:data:`TEST_EPISODES` training episodes are ``Q``'s (a probe; greedy actions stay the
-policy's). The weights on trial, if any, are judged then; if the probe's mean return
-beats the mean of the acting weights' returns, ``Q`` acts again, and the next search
-starts from those weights, behind the gate above.
 """
 
 from __future__ import annotations
@@ -83,10 +76,8 @@ class FeedbackPlanning:
     (transitions stored at the last search); with ``real_test`` (module docstring), the
     returns of the episodes run with the current weights ``returns``, the weights they
     replaced, their score and returns and whether they acted ``kept`` (None: none on
-    trial), whether the policy acts (``acting``; else ``Q`` does), the first transition
-    of the running episode ``episode_from`` (-1: none recorded), and ``Q``'s probe
-    (module docstring): its returns ``probe`` (None: no probe runs) and the transitions
-    stored when ``Q``'s returns were last measured ``q_at``."""
+    trial), whether the policy acts (``acting``; else ``Q`` does), and the first
+    transition of the running episode ``episode_from`` (-1: none recorded)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
                  net: bool = False, real_test: bool = False):  # fmt: skip
@@ -94,8 +85,6 @@ class FeedbackPlanning:
         self.returns: list[float] = []
         self.kept: tuple[FloatArray, float, list[float], bool] | None = None
         self.episode_from, self.acting = -1, False
-        self.probe: list[float] | None = None
-        self.q_at = 0
         self.settings = PolicySearchSettings(horizon=horizon)
         self.gradient_settings = PolicyGradientSettings(horizon=horizon)
         self.starts = np.zeros((0, obs_dim))
@@ -106,35 +95,11 @@ class FeedbackPlanning:
     def due(self, n: int) -> bool:
         """Whether a search is due with ``n`` transitions stored."""
         tested = not self.real_test or len(self.returns) >= TEST_EPISODES
-        if self.probing:
-            return False
         if self.policy is None:
             return tested
         # Q acts after a search that kept it: ask again once the data have doubled
         wait = SEARCH_EVERY if self.acting else max(SEARCH_EVERY, self.searched_at)
         return tested and n - self.searched_at >= wait
-
-    @property
-    def probing(self) -> bool:
-        """Whether the running episode is ``Q``'s probe (training actions are ``Q``'s)."""
-        return self.probe is not None
-
-    def probe_due(self, n: int) -> bool:
-        """Whether ``Q``'s probe starts with ``n`` transitions stored (module docstring)."""
-        tested = len(self.returns) >= TEST_EPISODES
-        return self.real_test and self.acting and not self.probing and tested and n >= 2 * self.q_at
-
-    def settle_probe(self, n: int) -> None:
-        """With the probe's :data:`TEST_EPISODES` returns in, after ``n`` transitions:
-        judge the weights on trial, then let ``Q`` act again if its probe did better."""
-        if self.probe is None or len(self.probe) < TEST_EPISODES:
-            return
-        probe, self.probe, self.q_at = self.probe, None, n
-        self._judge()
-        if not self.acting:  # the trial gave way to Q: the probe is more of its returns
-            self.returns += probe
-        elif np.mean(probe) > np.mean(self.returns):
-            self.returns, self.acting = probe, False
 
     @property
     def horizon(self) -> int:
@@ -149,15 +114,13 @@ class FeedbackPlanning:
         ended = steps > 0 and bool(terminated[-1]) and steps <= self.horizon
         if steps > 0 and (ended or 2 * steps >= self.horizon):
             ret = float(rewards[self.episode_from :].sum())
-            record = self.returns if self.probe is None else self.probe
-            record.append(ret if ended else ret * self.horizon / steps)
+            self.returns.append(ret if ended else ret * self.horizon / steps)
         self.episode_from = -1
 
-    def open_episode(self, n: int, acted: bool = True) -> None:
+    def open_episode(self, n: int) -> None:
         """An episode starts after ``n`` stored transitions: recorded with ``real_test``
-        (whoever acts) where its actions are the agent's (``acted``; not the warm-up's),
-        else if the policy acts."""
-        self.episode_from = n if (self.real_test and acted) or self.acting else -1
+        (whoever acts), else if the policy acts."""
+        self.episode_from = n if self.real_test or self.acting else -1
 
     def _judge(self) -> None:
         """Keep the weights on trial, or bring back those they replaced (module docstring)."""
@@ -197,8 +160,6 @@ class FeedbackPlanning:
             self.acting = True
         elif promising and not np.array_equal(self.gains, before[0]):
             self.kept, self.returns, self.acting = before, [], True
-            if not before[3]:  # Q's returns were measured up to here
-                self.q_at = n
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
         """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
@@ -211,17 +172,14 @@ class FeedbackPlanning:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The starts, the real returns, the running episode's start and ``Q``'s probe,
-        and once searched the policy, its gains and their score, whether it acts, and the
-        actor on trial replaced."""
+        """The starts, the real returns and the running episode's start, and once searched
+        the policy, its gains and their score, whether it acts, and the actor on trial
+        replaced."""
         arrays: dict[str, Any] = {
             "policy_starts": self.starts,
             "policy_returns": np.array(self.returns, dtype=np.float64),
             "policy_episode_from": np.array(self.episode_from),
-            "policy_q_at": np.array(self.q_at),
         }
-        if self.probe is not None:
-            arrays["policy_probe"] = np.array(self.probe, dtype=np.float64)
         if self.policy is not None:
             arrays |= {
                 "policy_center": self.policy.center, "policy_scale": self.policy.scale,
@@ -245,17 +203,13 @@ class FeedbackPlanning:
             raise ValueError("policy_starts must be finite")
         self.starts = starts
         self.returns = list(_finite(a.get("policy_returns", []), "policy_returns", None))
-        self.episode_from = _count(a.get("policy_episode_from", -1), "policy_episode_from", -1)
-        self.q_at = _count(a.get("policy_q_at", 0), "policy_q_at", 0)
-        if "policy_probe" in a:
-            self.probe = list(_finite(a["policy_probe"], "policy_probe", None))
+        self.episode_from = int(a.get("policy_episode_from", -1))
         if "policy_gains" not in a:
             return
         policy = self._make(a["policy_center"], a["policy_scale"])
         shape = (policy.n_params,) if isinstance(policy, MLPFeedback) else policy.shape
         self.policy, self.gains = policy, _finite(a["policy_gains"], "policy_gains", shape)
-        self.value = float(a["policy_value"])
-        self.searched_at = _count(a["policy_searched_at"], "policy_searched_at", 0)
+        self.value, self.searched_at = float(a["policy_value"]), int(a["policy_searched_at"])
         self.acting = _flag(a.get("policy_acting", True), "policy_acting")
         if "policy_kept_gains" in a:
             kept = _finite(a["policy_kept_gains"], "policy_kept_gains", shape)
@@ -280,11 +234,3 @@ def _flag(value: Any, name: str) -> bool:
     if array.shape != () or array.dtype != np.bool_:
         raise ValueError(f"{name} must be one boolean, got {array.dtype}, shape {array.shape}")
     return bool(array)
-
-
-def _count(value: Any, name: str, least: int) -> int:
-    """``value`` as one integer of at least ``least``, else ``ValueError``."""
-    array = np.asarray(value)
-    if array.shape != () or array.dtype.kind not in "iu" or int(array) < least:
-        raise ValueError(f"{name} must be one integer >= {least}, got {array!r}")
-    return int(array)

@@ -186,6 +186,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert (ours.value, ours.searched_at) == (theirs.value, theirs.searched_at)
     assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
     assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
+    assert ours.q_returns == theirs.q_returns
     assert ours.real_test == theirs.real_test == (planner == "policy-net")
     assert (ours.kept is None) == (theirs.kept is None) and ours.acting == theirs.acting
     a.learn(120)
@@ -198,6 +199,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
                ("model/policy_starts", np.full((3, 1), np.nan), "policy_starts"),
                ("model/policy_scale", np.zeros(1), "scale"),
                ("model/policy_returns", np.array([np.nan]), "policy_returns"),
+               ("model/policy_q_returns", np.ones((1, 1)), "policy_q_returns"),
                ("model/policy_acting", np.array(2.0), "policy_acting")]  # fmt: skip
     for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))

@@ -1,7 +1,7 @@
 """``planner="policy-net"``'s test on the task itself (:mod:`geoq.agents.policy_planning`):
 weights a search put in place run :data:`TEST_EPISODES` episodes, and give way to the
 actor before them (weights, or the agent's ``Q``) if their returns are worse by more
-than two standard errors."""
+than two standard errors; a policy acts only while the model expects it to beat ``Q``."""
 
 from __future__ import annotations
 
@@ -24,11 +24,13 @@ def _planning() -> tuple[FeedbackPlanning, GPDynamicsModel, np.random.Generator]
     planning = FeedbackPlanning(2, LOW, HIGH, horizon=10, net=True, real_test=True)
     planning.gradient_settings = PolicyGradientSettings(horizon=10, steps=0)
     planning.starts = rng.uniform(-0.5, 0.5, (8, 2))
-    planning.returns = [-1.0] * TEST_EPISODES  # Q's episodes
+    planning.returns = [0.0] * TEST_EPISODES  # Q's episodes: no cost, beyond any policy
     planning.search(model, 0, rng)
-    # weights the search did not move: Q keeps acting, and no trial
+    # the model does not expect the weights to beat Q: Q keeps acting, and no trial
     assert planning.policy is not None and planning.kept is None and not planning.acting
-    planning.acting = True
+    assert planning.q_returns == [] and planning.value < 0.0
+    # from here a policy acts, and Q's returns were far below what the model expects of it
+    planning.acting, planning.q_returns = True, [-50.0] * TEST_EPISODES
     return planning, model, rng
 
 
@@ -111,13 +113,19 @@ def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
     planning.returns = list(q_returns)
     planning.search(model, 0, rng)
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
+    assert planning.q_returns == q_returns  # what the model's next returns are set against
     first, tried = planning.kept[0], planning.gains.copy()
     planning.returns = [-2.2, -2.4] if kept else [-9.0, -8.0]
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
     planning.search(model, SEARCH_EVERY, rng)  # judged, then searched with no Adam step
-    assert planning.kept is None and planning.acting is kept
     np.testing.assert_array_equal(planning.gains, tried if kept else first)
-    assert planning.returns == ([-2.2, -2.4] if kept else q_returns)
+    if kept:
+        assert planning.kept is None and planning.acting and planning.returns == [-2.2, -2.4]
+        return
+    # Q is back; the weights before the trial never acted, so the model decides for them
+    retried = bool(planning.value > np.mean(q_returns))
+    assert planning.acting is retried and (planning.kept is not None) is retried
+    assert (planning.kept[2] if retried else planning.returns) == q_returns
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:
@@ -145,11 +153,30 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     assert planning.value < 0.0 and planning.policy is not None
     assert not planning.acting and planning.kept is None and planning.returns == [0.0, 0.0]
     found = planning.gains.copy()
-    planning.returns = [planning.value - 1.0, planning.value - 1.5]
+    q_returns = [planning.value - 1.0, planning.value - 1.5]
+    planning.returns = list(q_returns)
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
     planning.search(model, SEARCH_EVERY, rng)  # no Adam step: the same weights, expected better
-    assert not planning.acting  # the weights did not move: no trial either
-    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
-    planning.search(model, 2 * SEARCH_EVERY, rng)
+    # they never acted: on trial all the same
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
-    np.testing.assert_array_equal(planning.kept[0], found)
+    np.testing.assert_array_equal(planning.gains, found)
+    assert planning.kept[2] == planning.q_returns == q_returns
+
+
+@pytest.mark.parametrize("on_trial", [False, True])
+def test_a_policy_the_model_no_longer_expects_to_beat_q_gives_way_to_q(on_trial: bool) -> None:
+    """While a policy acts (its weights on trial or not), a search whose weights the model
+    scores below the mean of ``Q``'s returns brings ``Q`` back with those returns; the
+    next search starts from the weights found."""
+    planning, model, rng = _planning()
+    planning.returns = [-0.5, -0.6, -0.4]
+    before = planning.gains.copy()
+    if on_trial:  # the weights before did worse: the trial keeps the new ones
+        planning.kept = (before - 0.1, -3.0, [-0.5, -0.6], True)
+    planning.search(model, 200, rng)  # the model expects the same as before: they stay
+    assert planning.acting and planning.kept is None and planning.returns == [-0.5, -0.6, -0.4]
+    planning.q_returns = [0.0, -0.1]  # Q did better than any policy can
+    planning.search(model, 300, rng)
+    assert not planning.acting and planning.kept is None and planning.returns == [0.0, -0.1]
+    np.testing.assert_array_equal(planning.gains, before)
+    assert planning.due(600) and not planning.due(599)  # Q acts: the data double first

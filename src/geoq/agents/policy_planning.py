@@ -22,16 +22,21 @@ termination within the horizon, else rescaled from the steps it ran to the horiz
 all where it was cut before half the horizon (what it would have returned is then
 more guess than measure: a pole alive after one step is not one that balances). A search is
 due only once the current actor (``Q`` before the first search) has run
-:data:`TEST_EPISODES` episodes. Weights found while ``Q`` acts replace it only where the
-model's return for them beats the mean of ``Q``'s; weights a search put in place keep
-acting only if their episodes' returns are not below the returns of the actor they
-replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of
-the difference of the means; else that actor comes back (the weights before, or
-``Q``), and the next search starts from the weights before with the data the failed
-ones brought. A search that keeps the weights it starts from changes no actor. While
-``Q`` acts after a search, the next waits until the transitions have doubled (as the
-model's fits do): a model that expected less than ``Q`` from its best weights is asked
-again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
+:data:`TEST_EPISODES` episodes. A policy acts only while the model expects it to beat
+``Q``: at every search, the model's return for the weights found is compared with the
+mean of ``Q``'s returns (those ``Q`` had when a policy last replaced it, while a policy
+acts). Where it is not above, ``Q`` acts (again, if a policy acted), and the next search
+starts from the weights found. Where it is, weights found while ``Q`` acts go on trial,
+whether or not the search moved them (weights that never acted are untested); while a
+policy acts, a search that keeps the weights it starts from changes no actor. Weights a
+search put in place keep acting only if their episodes' returns are not below the
+returns of the actor they replaced by more than
+:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference of the
+means; else that actor comes back (the weights before, or ``Q``), and the next search
+starts from the weights before with the data the failed ones brought. While ``Q`` acts
+after a search, the next waits until the transitions have doubled (as the model's fits
+do): a model that expected less than ``Q`` from its best weights is asked again once it
+has that much more data, not every :data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -76,13 +81,15 @@ class FeedbackPlanning:
     (transitions stored at the last search); with ``real_test`` (module docstring), the
     returns of the episodes run with the current weights ``returns``, the weights they
     replaced, their score and returns and whether they acted ``kept`` (None: none on
-    trial), whether the policy acts (``acting``; else ``Q`` does), and the first
-    transition of the running episode ``episode_from`` (-1: none recorded)."""
+    trial), whether the policy acts (``acting``; else ``Q`` does), ``Q``'s returns when
+    a policy last replaced it ``q_returns``, and the first transition of the running
+    episode ``episode_from`` (-1: none recorded)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
                  net: bool = False, real_test: bool = False):  # fmt: skip
         self.low, self.high, self.net, self.real_test = low, high, net, real_test
         self.returns: list[float] = []
+        self.q_returns: list[float] = []
         self.kept: tuple[FloatArray, float, list[float], bool] | None = None
         self.episode_from, self.acting = -1, False
         self.settings = PolicySearchSettings(horizon=horizon)
@@ -155,10 +162,15 @@ class FeedbackPlanning:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip
         self.searched_at = n
-        promising = before[3] or (len(before[2]) > 0 and self.value > np.mean(before[2]))
+        q_returns = self.q_returns if before[3] else before[2]
+        expected = not q_returns or self.value > np.mean(q_returns)
         if not self.real_test:
             self.acting = True
-        elif promising and not np.array_equal(self.gains, before[0]):
+        elif not expected and before[3]:  # the model no longer expects to beat Q: Q again
+            self.returns, self.acting, self.kept = list(self.q_returns), False, None
+        elif expected and (not before[3] or not np.array_equal(self.gains, before[0])):
+            if not before[3]:
+                self.q_returns = list(before[2])
             self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
@@ -172,12 +184,13 @@ class FeedbackPlanning:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The starts, the real returns and the running episode's start, and once searched
-        the policy, its gains and their score, whether it acts, and the actor on trial
-        replaced."""
+        """The starts, the real returns (``Q``'s too) and the running episode's start, and
+        once searched the policy, its gains and their score, whether it acts, and the actor
+        on trial replaced."""
         arrays: dict[str, Any] = {
             "policy_starts": self.starts,
             "policy_returns": np.array(self.returns, dtype=np.float64),
+            "policy_q_returns": np.array(self.q_returns, dtype=np.float64),
             "policy_episode_from": np.array(self.episode_from),
         }
         if self.policy is not None:
@@ -203,6 +216,7 @@ class FeedbackPlanning:
             raise ValueError("policy_starts must be finite")
         self.starts = starts
         self.returns = list(_finite(a.get("policy_returns", []), "policy_returns", None))
+        self.q_returns = list(_finite(a.get("policy_q_returns", []), "policy_q_returns", None))
         self.episode_from = int(a.get("policy_episode_from", -1))
         if "policy_gains" not in a:
             return

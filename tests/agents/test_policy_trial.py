@@ -118,14 +118,9 @@ def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
     planning.returns = [-2.2, -2.4] if kept else [-9.0, -8.0]
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
     planning.search(model, SEARCH_EVERY, rng)  # judged, then searched with no Adam step
+    assert planning.kept is None and planning.acting is kept
     np.testing.assert_array_equal(planning.gains, tried if kept else first)
-    if kept:
-        assert planning.kept is None and planning.acting and planning.returns == [-2.2, -2.4]
-        return
-    # Q is back; the weights before the trial never acted, so the model decides for them
-    retried = bool(planning.value > np.mean(q_returns))
-    assert planning.acting is retried and (planning.kept is not None) is retried
-    assert (planning.kept[2] if retried else planning.returns) == q_returns
+    assert planning.returns == ([-2.2, -2.4] if kept else q_returns)
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:
@@ -157,9 +152,11 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     planning.returns = list(q_returns)
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
     planning.search(model, SEARCH_EVERY, rng)  # no Adam step: the same weights, expected better
-    # they never acted: on trial all the same
+    assert not planning.acting  # the weights did not move: no trial either
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
+    planning.search(model, 2 * SEARCH_EVERY, rng)
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
-    np.testing.assert_array_equal(planning.gains, found)
+    np.testing.assert_array_equal(planning.kept[0], found)
     assert planning.kept[2] == planning.q_returns == q_returns
 
 
@@ -180,3 +177,12 @@ def test_a_policy_the_model_no_longer_expects_to_beat_q_gives_way_to_q(on_trial:
     assert not planning.acting and planning.kept is None and planning.returns == [0.0, -0.1]
     np.testing.assert_array_equal(planning.gains, before)
     assert planning.due(600) and not planning.due(599)  # Q acts: the data double first
+
+
+def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
+    """An agent saved before ``Q``'s returns were kept beside a policy's has none to set
+    the model's return against: its policy acts on."""
+    planning, model, rng = _planning()
+    planning.returns, planning.q_returns = [-0.5, -0.6], []
+    planning.search(model, 200, rng)
+    assert planning.acting and planning.returns == [-0.5, -0.6]

@@ -26,17 +26,16 @@ due only once the current actor (``Q`` before the first search) has run
 ``Q``: at every search, the model's return for the weights found is compared with the
 mean of ``Q``'s returns (those ``Q`` had when a policy last replaced it, while a policy
 acts). Where it is not above, ``Q`` acts (again, if a policy acted), and the next search
-starts from the weights found. Where it is, weights found while ``Q`` acts go on trial,
-whether or not the search moved them (weights that never acted are untested); while a
-policy acts, a search that keeps the weights it starts from changes no actor. Weights a
-search put in place keep acting only if their episodes' returns are not below the
-returns of the actor they replaced by more than
-:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference of the
-means; else that actor comes back (the weights before, or ``Q``), and the next search
-starts from the weights before with the data the failed ones brought. While ``Q`` acts
-after a search, the next waits until the transitions have doubled (as the model's fits
-do): a model that expected less than ``Q`` from its best weights is asked again once it
-has that much more data, not every :data:`SEARCH_EVERY` transitions.
+starts from the weights found. Where it is, and the search moved the weights, they go on
+trial: they keep acting only if their episodes' returns are not below the returns of
+the actor they replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE`
+standard errors of the difference of the means; else that actor comes back (the
+weights before, or ``Q``), and the next search starts from the weights before with the
+data the failed ones brought. A search that keeps the weights it starts from changes
+no actor. While ``Q`` acts after a search, the next waits until the transitions have
+doubled (as the model's fits do): a model that expected less than ``Q`` from its best
+weights is asked again once it has that much more data, not every
+:data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -168,7 +167,7 @@ class FeedbackPlanning:
             self.acting = True
         elif not expected and before[3]:  # the model no longer expects to beat Q: Q again
             self.returns, self.acting, self.kept = list(self.q_returns), False, None
-        elif expected and (not before[3] or not np.array_equal(self.gains, before[0])):
+        elif expected and not np.array_equal(self.gains, before[0]):
             if not before[3]:
                 self.q_returns = list(before[2])
             self.kept, self.returns, self.acting = before, [], True

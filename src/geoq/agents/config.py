@@ -234,8 +234,9 @@ class GPQConfig:
     searched by gradients; ``off``: act on ``Q`` alone; ``auto`` (resolved by
     :meth:`for_dims`): ``off`` where the rule's length-scales let the default budget cover
     the input box (as ``prior``'s ``auto``: the tasks ``Q`` alone learns, the pendulums,
-    the mountain car, TwoRooms), ``policy-net`` where they cannot (where its searched
-    policies do not pay on the task, ``Q`` acts: :mod:`geoq.agents.policy_planning`).
+    the mountain car, TwoRooms), ``policy-net`` where they cannot (where the model does
+    not expect its policies to beat ``Q``, or they do not on the task, ``Q`` acts:
+    :mod:`geoq.agents.policy_planning`).
     Where both a map and a planner would act, the map's plan comes first."""
     policy_horizon: int | None = None
     """Model steps a ``policy`` or ``policy-net`` search scores its policies over (undiscounted);

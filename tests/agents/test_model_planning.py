@@ -179,6 +179,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     a, b = _policy_agent(3, planner).learn(150), _policy_agent(3, planner).learn(150)
     for x, y in zip(a.buffer.arrays(), b.buffer.arrays(), strict=True):
         assert np.array_equal(x, y)
+    a.planning.feedback.overshoot = 0.25  # a shortfall on record, read by the next gate
     a.save(tmp_path / "a.npz")
     loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
     ours, theirs = a.planning.feedback, loaded.planning.feedback
@@ -186,7 +187,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert (ours.value, ours.searched_at) == (theirs.value, theirs.searched_at)
     assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
     assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
-    assert ours.q_returns == theirs.q_returns
+    assert ours.q_returns == theirs.q_returns and ours.overshoot == theirs.overshoot == 0.25
     assert ours.real_test == theirs.real_test == (planner == "policy-net")
     assert (ours.kept is None) == (theirs.kept is None) and ours.acting == theirs.acting
     a.learn(120)
@@ -200,6 +201,8 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
                ("model/policy_scale", np.zeros(1), "scale"),
                ("model/policy_returns", np.array([np.nan]), "policy_returns"),
                ("model/policy_q_returns", np.ones((1, 1)), "policy_q_returns"),
+               ("model/policy_overshoot", np.array(np.inf), "policy_overshoot"),
+               ("model/policy_overshoot", np.array(-1.0), "policy_overshoot"),
                ("model/policy_acting", np.array(2.0), "policy_acting")]  # fmt: skip
     for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))

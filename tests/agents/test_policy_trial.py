@@ -115,12 +115,35 @@ def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
     assert planning.q_returns == q_returns  # what the model's next returns are set against
     first, tried = planning.kept[0], planning.gains.copy()
-    planning.returns = [-2.2, -2.4] if kept else [-9.0, -8.0]
+    assert -2.25 < planning.value < -1.2  # the returns below keep the model's promise
+    planning.returns = [-1.2, -1.4] if kept else [-9.0, -8.0]
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
     planning.search(model, SEARCH_EVERY, rng)  # judged, then searched with no Adam step
     assert planning.kept is None and planning.acting is kept
+    assert (planning.overshoot == 0.0) is kept  # -9 and -8 fell short of the promise
     np.testing.assert_array_equal(planning.gains, tried if kept else first)
-    assert planning.returns == ([-2.2, -2.4] if kept else q_returns)
+    assert planning.returns == ([-1.2, -1.4] if kept else q_returns)
+
+
+@pytest.mark.parametrize(("shortfall", "acting"), [([2.2, 2.4], False), ([2.5, 0.0], True),
+                                                  ([0.1, -0.1], True)])  # fmt: skip
+def test_the_gate_reads_the_model_less_what_it_last_promised_in_vain(
+    shortfall: list, acting: bool
+) -> None:
+    """Oracle by hand: weights that acted and returned significantly less (two standard
+    errors of their mean) than the model's score for them leave that shortfall as the
+    ``overshoot``; the next search's score, less it, must beat ``Q``'s mean."""
+    planning, model, rng = _planning()
+    promise = planning.value
+    r = promise - np.array(shortfall)
+    planning.q_returns, planning.returns = [promise - 2.0] * 2, list(r)
+    short = promise - r.mean()
+    overshoot = short if short > 2.0 * r.std(ddof=1) / np.sqrt(len(r)) else 0.0
+    planning.search(model, SEARCH_EVERY, rng)  # no Adam step: the same weights, re-scored
+    assert planning.overshoot == pytest.approx(overshoot, abs=1e-12)
+    assert abs(planning.value - promise) < 0.2  # fresh starts: the score moves a little
+    assert planning.acting is bool(planning.value - overshoot > promise - 2.0) is acting
+    assert planning.returns == (list(r) if acting else [promise - 2.0] * 2)
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:

@@ -28,19 +28,19 @@ due only once the current actor (``Q`` before the first search) has run
 policy last replaced it, while a policy acts). The overshoot is how far the returns of
 the weights acting at a search fell short of the model's score for them, where they did
 by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of their mean
-(else 0), kept until a policy acts again: a model that promised more than the task gave
-is believed that much less (on ``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000
-steps, and the task gave -150). Where it is not above, ``Q`` acts (again, if a policy
-acted), and the next search starts from the weights found. Where it is, and the search
-moved the weights, they go on trial: they keep acting only if their episodes' returns
-are not below the returns of the actor they replaced by more than
-:data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference of the
-means; else that actor comes back (the weights before, or ``Q``), and the next search
-starts from the weights before with the data the failed ones brought. A search that
-keeps the weights it starts from changes no actor. While ``Q`` acts after a search, the
-next waits until the transitions have doubled (as the model's fits do): a model that
-expected less than ``Q`` from its best weights is asked again once it has that much more
-data, not every :data:`SEARCH_EVERY` transitions.
+(else 0), kept until it is measured again (``Q`` acting: until a policy has acted): a
+model that promised more than the task gave is believed that much less (on
+``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000 steps, and the task gave
+-150). Where it is not above, ``Q`` acts (again, if a policy acted), and the next search
+starts from the weights found. Where it is, and the search moved the weights, they go on
+trial: they keep acting only if their episodes' returns are not below the returns of the
+actor they replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard
+errors of the difference of the means; else that actor comes back (the weights before,
+or ``Q``), and the next search starts from the weights before with the data the failed
+ones brought. A search that keeps the weights it starts from changes no actor. While
+``Q`` acts after a search, the next waits until the transitions have doubled (as the
+model's fits do): a model that expected less than ``Q`` from its best weights is asked
+again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations

@@ -202,42 +202,6 @@ def test_a_policy_the_model_no_longer_expects_to_beat_q_gives_way_to_q(on_trial:
     assert planning.due(600) and not planning.due(599)  # Q acts: the data double first
 
 
-@pytest.mark.parametrize(("ahead", "acting"), [([3.0, 3.1], True), ([1.3, 0.9], False)])
-def test_a_policy_the_task_measured_above_q_acts_whatever_the_model_now_scores(
-    ahead: list, acting: bool
-) -> None:
-    """Oracle by hand: where the acting weights' returns beat ``Q``'s by more than two
-    standard errors of the difference of the means (Welch's), they act on though the
-    model now scores them below ``Q``'s mean; within them, ``Q`` comes back."""
-    planning, model, rng = _planning()
-    promise = planning.value
-    q = np.array([promise + 1.0, promise + 1.2])  # above what the model will score
-    r = promise + np.array(ahead)
-    se = np.sqrt(r.var(ddof=1) / 2 + q.var(ddof=1) / 2)
-    assert bool(r.mean() > q.mean() + 2.0 * se) is acting
-    planning.q_returns, planning.returns = list(q), list(r)
-    planning.search(model, SEARCH_EVERY, rng)  # no Adam step: the same weights, re-scored
-    assert planning.value < q.mean() and planning.kept is None and planning.overshoot == 0.0
-    assert planning.acting is acting
-    assert planning.returns == (list(r) if acting else list(q))
-
-
-def test_weights_found_from_a_policy_the_task_measured_above_q_go_on_trial() -> None:
-    """The model reads for differences: from weights the task measured above ``Q``, a
-    search that moved them puts the new ones on trial against them, though the model
-    scores both below ``Q``'s mean (it under-scores them: their returns exceed any it
-    can predict)."""
-    planning, model, rng = _planning()
-    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
-    planning.q_returns, planning.returns = [-0.1, 0.0], [0.5, 0.6]
-    before = planning.gains.copy()
-    planning.search(model, SEARCH_EVERY, rng)
-    assert planning.value < -0.05 and planning.acting and planning.returns == []
-    assert planning.kept is not None and not np.array_equal(planning.gains, before)
-    np.testing.assert_array_equal(planning.kept[0], before)
-    assert planning.kept[2] == [0.5, 0.6] and planning.kept[3] is True
-
-
 def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
     """An agent saved before ``Q``'s returns were kept beside a policy's has none to set
     the model's return against: its policy acts on."""

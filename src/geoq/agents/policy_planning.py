@@ -23,30 +23,24 @@ all where it was cut before half the horizon (what it would have returned is the
 more guess than measure: a pole alive after one step is not one that balances). A search is
 due only once the current actor (``Q`` before the first search) has run
 :data:`TEST_EPISODES` episodes. A policy acts only while the model expects it to beat
-``Q``, or the task has shown it does. At every search, the model's return for the
-weights found, less the ``overshoot``, is compared with the mean of ``Q``'s returns
-(those ``Q`` had when a policy last replaced it, while a policy acts). The overshoot is
-how far the returns of the weights acting at a search fell short of the model's score
-for them, where they did by more than :data:`~geoq.models.policy_search.HOLDOUT_SE`
-standard errors of their mean (else 0), kept until it is measured again (``Q`` acting:
-until a policy has acted): a model that promised more than the task gave is believed
-that much less (on ``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000 steps, and
-the task gave -150). The task's word stands above the model's: acting weights whose
-returns beat ``Q``'s by more than ``HOLDOUT_SE`` standard errors of the difference of
-the means (``proven``) act on whatever the model now scores them at (on ``Hopper-v5`` a
-model refitted on more data scored at 9 weights the task had just measured at 1,036),
-and the model is read only for a difference: the weights the search found from them,
-which its hold-out scored above them. Where neither holds, ``Q`` acts (again, if a
-policy acted), and the next search starts from the weights found. Where either does,
-and the search moved the weights, they go on trial: they keep acting only if their
-episodes' returns are not below the returns of the actor they replaced by more than
-``HOLDOUT_SE`` standard errors of the difference of the means; else that actor comes
-back (the weights before, or ``Q``), and the next search starts from the weights before
-with the data the failed ones brought. A search that keeps the weights it starts from
-changes no actor. While ``Q`` acts after a search, the next waits until the transitions
-have doubled (as the model's fits do): a model that expected less than ``Q`` from its
-best weights is asked again once it has that much more data, not every
-:data:`SEARCH_EVERY` transitions.
+``Q``: at every search, the model's return for the weights found, less the
+``overshoot``, is compared with the mean of ``Q``'s returns (those ``Q`` had when a
+policy last replaced it, while a policy acts). The overshoot is how far the returns of
+the weights acting at a search fell short of the model's score for them, where they did
+by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of their mean
+(else 0), kept until it is measured again (``Q`` acting: until a policy has acted): a
+model that promised more than the task gave is believed that much less (on
+``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000 steps, and the task gave
+-150). Where it is not above, ``Q`` acts (again, if a policy acted), and the next search
+starts from the weights found. Where it is, and the search moved the weights, they go on
+trial: they keep acting only if their episodes' returns are not below the returns of the
+actor they replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard
+errors of the difference of the means; else that actor comes back (the weights before,
+or ``Q``), and the next search starts from the weights before with the data the failed
+ones brought. A search that keeps the weights it starts from changes no actor. While
+``Q`` acts after a search, the next waits until the transitions have doubled (as the
+model's fits do): a model that expected less than ``Q`` from its best weights is asked
+again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -157,8 +151,11 @@ class FeedbackPlanning:
         if self.kept is None:
             return
         gains, value, returns, acting = self.kept
-        if _outscores(returns, self.returns):
-            self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
+        new, old = np.array(self.returns), np.array(returns)
+        if len(new) >= 2 and len(old) >= 2:
+            se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
+            if new.mean() < old.mean() - HOLDOUT_SE * se:
+                self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
         self.kept = None
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
@@ -185,12 +182,11 @@ class FeedbackPlanning:
         self.searched_at = n
         q_returns = self.q_returns if before[3] else before[2]
         expected = not q_returns or self.value - self.overshoot > np.mean(q_returns)
-        proven = before[3] and _outscores(before[2], q_returns)  # the task's word on them
         if not self.real_test:
             self.acting = True
-        elif not (expected or proven) and before[3]:  # no longer expected to beat Q: Q again
+        elif not expected and before[3]:  # the model no longer expects to beat Q: Q again
             self.returns, self.acting, self.kept = list(self.q_returns), False, None
-        elif (expected or proven) and not np.array_equal(self.gains, before[0]):
+        elif expected and not np.array_equal(self.gains, before[0]):
             if not before[3]:
                 self.q_returns = list(before[2])
             self.kept, self.returns, self.acting = before, [], True
@@ -257,17 +253,6 @@ class FeedbackPlanning:
             returns = _finite(a["policy_kept_returns"], "policy_kept_returns", None)
             acting = _flag(a.get("policy_kept_acting", True), "policy_kept_acting")
             self.kept = (kept, float(a["policy_kept_value"]), list(returns), acting)
-
-
-def _outscores(returns: list[float], other: list[float]) -> bool:
-    """Whether the mean of ``returns`` is above that of ``other`` by more than
-    :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the difference
-    (Welch's; False with fewer than two of either)."""
-    new, old = np.array(returns), np.array(other)
-    if len(new) < 2 or len(old) < 2:
-        return False
-    se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
-    return bool(new.mean() > old.mean() + HOLDOUT_SE * se)
 
 
 def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:

@@ -149,6 +149,12 @@ def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner
     expected = feedback.policy.act(feedback.gains, obs[None])[0]
     np.testing.assert_array_equal(agent.predict(obs)[0], expected)
     assert agent.rng.bit_generator.state == state
+    if planner == "policy-net":  # Q on trial against the policy: greedy actions stay its
+        incumbent = feedback.gains + 0.5
+        feedback.kept, feedback.acting = (incumbent, feedback.value, [-1.0, -2.0], True), False
+        assert not agent.planning.active and agent.planning.greedy_active
+        expected = feedback.policy.act(incumbent, obs[None])[0]
+        np.testing.assert_array_equal(agent.predict(obs)[0], expected)
 
 
 class PointToCentre(PointToGoal):
@@ -180,6 +186,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     for x, y in zip(a.buffer.arrays(), b.buffer.arrays(), strict=True):
         assert np.array_equal(x, y)
     a.planning.feedback.overshoot = 0.25  # a shortfall on record, read by the next gate
+    a.planning.feedback.q_lost_at = 120  # Q lost a trial there: no new one before 240
     a.save(tmp_path / "a.npz")
     loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
     ours, theirs = a.planning.feedback, loaded.planning.feedback
@@ -188,6 +195,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert type(ours.policy) is type(theirs.policy) and ours.net == (planner == "policy-net")
     assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
     assert ours.q_returns == theirs.q_returns and ours.overshoot == theirs.overshoot == 0.25
+    assert ours.q_lost_at == theirs.q_lost_at == 120
     assert ours.real_test == theirs.real_test == (planner == "policy-net")
     assert (ours.kept is None) == (theirs.kept is None) and ours.acting == theirs.acting
     a.learn(120)
@@ -203,7 +211,9 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
                ("model/policy_q_returns", np.ones((1, 1)), "policy_q_returns"),
                ("model/policy_overshoot", np.array(np.inf), "policy_overshoot"),
                ("model/policy_overshoot", np.array(-1.0), "policy_overshoot"),
-               ("model/policy_acting", np.array(2.0), "policy_acting")]  # fmt: skip
+               ("model/policy_acting", np.array(2.0), "policy_acting"),
+               ("model/policy_q_lost_at", np.array(-1), "policy_q_lost_at"),
+               ("model/policy_q_lost_at", np.array(1.5), "policy_q_lost_at")]  # fmt: skip
     for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
         with pytest.raises(ArchiveError, match=match):

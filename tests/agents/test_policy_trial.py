@@ -1,13 +1,15 @@
 """``planner="policy-net"``'s test on the task itself (:mod:`geoq.agents.policy_planning`):
 weights a search put in place run :data:`TEST_EPISODES` episodes, and give way to the
 actor before them (weights, or the agent's ``Q``) if their returns are worse by more
-than two standard errors; a policy acts only while the model expects it to beat ``Q``."""
+than two standard errors; a policy acts only while the model expects it to beat ``Q``,
+and where it no longer does, ``Q`` acts on trial against it, judged on the means."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from geoq._typing import FloatArray
 from geoq.agents.policy_planning import SEARCH_EVERY, TEST_EPISODES, FeedbackPlanning
 from geoq.models import GPDynamicsModel, PolicyGradientSettings
 
@@ -143,7 +145,8 @@ def test_the_gate_reads_the_model_less_what_it_last_promised_in_vain(
     assert planning.overshoot == pytest.approx(overshoot, abs=1e-12)
     assert abs(planning.value - promise) < 0.2  # fresh starts: the score moves a little
     assert planning.acting is bool(planning.value - overshoot > promise - 2.0) is acting
-    assert planning.returns == (list(r) if acting else [promise - 2.0] * 2)
+    assert planning.returns == (list(r) if acting else [])  # else Q's trial: returns afresh
+    assert planning.q_on_trial is not acting and planning.greedy_acting
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:
@@ -183,11 +186,11 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     assert planning.kept[2] == planning.q_returns == q_returns
 
 
-@pytest.mark.parametrize("on_trial", [False, True])
-def test_a_policy_the_model_no_longer_expects_to_beat_q_gives_way_to_q(on_trial: bool) -> None:
-    """While a policy acts (its weights on trial or not), a search whose weights the model
-    scores below the mean of ``Q``'s returns brings ``Q`` back with those returns; the
-    next search starts from the weights found."""
+def _q_on_trial(on_trial: bool = False) -> tuple[FeedbackPlanning, GPDynamicsModel,
+                                                   np.random.Generator, FloatArray]:  # fmt: skip
+    """A policy acting with returns ``-0.5, -0.6, -0.4`` (its weights on trial, or not),
+    which a search at 300 transitions sends back to ``Q`` on trial: ``Q``'s returns on
+    record (0, -0.1) beat any policy's score. Also the policy's weights."""
     planning, model, rng = _planning()
     planning.returns = [-0.5, -0.6, -0.4]
     before = planning.gains.copy()
@@ -197,9 +200,56 @@ def test_a_policy_the_model_no_longer_expects_to_beat_q_gives_way_to_q(on_trial:
     assert planning.acting and planning.kept is None and planning.returns == [-0.5, -0.6, -0.4]
     planning.q_returns = [0.0, -0.1]  # Q did better than any policy can
     planning.search(model, 300, rng)
-    assert not planning.acting and planning.kept is None and planning.returns == [0.0, -0.1]
+    return planning, model, rng, before
+
+
+@pytest.mark.parametrize("on_trial", [False, True])
+def test_a_policy_the_model_no_longer_expects_to_beat_q_puts_q_on_trial(on_trial: bool) -> None:
+    """While a policy acts (its weights on trial or not), a search whose weights the model
+    scores below the mean of ``Q``'s returns on record brings ``Q`` back, on trial against
+    the policy: ``Q``'s returns start afresh, greedy actions stay the policy's, and the
+    next search comes after ``Q``'s episodes; it starts from the weights found."""
+    planning, _, _, before = _q_on_trial(on_trial)
+    assert not planning.acting and planning.q_on_trial and planning.returns == []
+    assert planning.kept is not None and planning.kept[2] == [-0.5, -0.6, -0.4]
+    np.testing.assert_array_equal(planning.kept[0], before)
+    np.testing.assert_array_equal(planning.gains, before)  # no Adam step: the same weights
+    planning.gains = before + 1.0  # as if the search had moved them
+    s = np.array([[0.3, -0.2]])
+    assert planning.policy is not None and planning.greedy_acting
+    np.testing.assert_array_equal(planning.action(s, None), planning.policy.act(before, s))
+    planning.returns = [-0.2] * (TEST_EPISODES - 1)
+    assert not planning.due(10_000)  # Q's episodes first
+    planning.returns.append(-0.2)
+    assert planning.due(300 + SEARCH_EVERY) and not planning.due(300 + SEARCH_EVERY - 1)
+
+
+@pytest.mark.parametrize(
+    ("fresh", "q_wins"),
+    [([-0.6, -0.45], False), ([-0.5, -0.5], True), ([-1.5, 0.6], True), ([-0.55, -0.52], False)],
+)
+def test_q_on_trial_is_judged_on_the_means(fresh: list, q_wins: bool) -> None:
+    """Oracle by hand (the policy's mean: -0.5): ``Q`` keeps acting where its fresh mean
+    is not below the policy's, whatever the spread; else the policy acts again with the
+    weights the task judged, ``Q``'s fresh returns become its record, and the model's
+    score cannot send the policy back before the data have doubled."""
+    planning, model, rng, before = _q_on_trial()
+    planning.returns = list(fresh)
+    assert (np.mean(fresh) >= -0.5) == q_wins
+    planning.search(model, 420, rng)
+    assert planning.kept is None and not planning.q_on_trial
+    if q_wins:  # Q acts on, with its fresh returns, and is asked again once the data double
+        assert not planning.acting and planning.returns == fresh and planning.q_lost_at == 0
+        assert planning.due(840) and not planning.due(839)
+        return
+    assert planning.acting and planning.returns == [-0.5, -0.6, -0.4]
+    assert planning.q_returns == fresh and planning.q_lost_at == 420
     np.testing.assert_array_equal(planning.gains, before)
-    assert planning.due(600) and not planning.due(599)  # Q acts: the data double first
+    planning.q_returns = [0.0, -0.1]  # the model's score is below Q's again, and not asked
+    planning.search(model, 839, rng)
+    assert planning.acting and planning.kept is None
+    planning.search(model, 840, rng)  # the data have doubled since Q lost: Q's trial again
+    assert planning.q_on_trial and planning.returns == []
 
 
 def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:

@@ -31,16 +31,26 @@ by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of th
 (else 0), kept until it is measured again (``Q`` acting: until a policy has acted): a
 model that promised more than the task gave is believed that much less (on
 ``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000 steps, and the task gave
--150). Where it is not above, ``Q`` acts (again, if a policy acted), and the next search
-starts from the weights found. Where it is, and the search moved the weights, they go on
-trial: they keep acting only if their episodes' returns are not below the returns of the
-actor they replaced by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard
-errors of the difference of the means; else that actor comes back (the weights before,
-or ``Q``), and the next search starts from the weights before with the data the failed
-ones brought. A search that keeps the weights it starts from changes no actor. While
-``Q`` acts after a search, the next waits until the transitions have doubled (as the
-model's fits do): a model that expected less than ``Q`` from its best weights is asked
-again once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
+-150). Where it is not above, ``Q`` acts, and the next search starts from the weights
+found. Where it is, and the search moved the weights, they go on trial: they keep acting
+only if their episodes' returns are not below the returns of the actor they replaced by
+more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the
+difference of the means; else that actor comes back (the weights before, or ``Q``), and
+the next search starts from the weights before with the data the failed ones brought. A
+search that keeps the weights it starts from changes no actor.
+
+Where a policy acted and the model no longer expects it to beat ``Q``, ``Q`` comes back
+on trial against it: ``Q``'s record is as old as the policy's reign, and the task, not
+the model, is asked whether ``Q`` now does better. ``Q``'s returns start afresh, greedy
+actions stay the policy's until the verdict, and the next search comes after ``Q``'s
+:data:`TEST_EPISODES` episodes. There, if the mean of ``Q``'s fresh returns is below the
+policy's (the means alone: two episodes of a task that falls or not are too spread for
+a test to have power), the policy acts again with the weights the task judged, ``Q``'s
+fresh returns become its record, and the model's score cannot send the policy back
+until the transitions have doubled since (``q_lost_at``). While ``Q`` acts after a
+search otherwise, the next waits until the transitions have doubled (as the model's
+fits do): a model that expected less than ``Q`` from its best weights is asked again
+once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -87,8 +97,8 @@ class FeedbackPlanning:
     replaced, their score and returns and whether they acted ``kept`` (None: none on
     trial), whether the policy acts (``acting``; else ``Q`` does), ``Q``'s returns when
     a policy last replaced it ``q_returns``, the model's last shortfall ``overshoot``,
-    and the first transition of the running episode ``episode_from`` (-1: none
-    recorded)."""
+    the transitions stored when ``Q`` last lost a trial ``q_lost_at`` (0: never), and the
+    first transition of the running episode ``episode_from`` (-1: none recorded)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
                  net: bool = False, real_test: bool = False):  # fmt: skip
@@ -97,6 +107,7 @@ class FeedbackPlanning:
         self.q_returns: list[float] = []
         self.kept: tuple[FloatArray, float, list[float], bool] | None = None
         self.episode_from, self.acting, self.overshoot = -1, False, 0.0
+        self.q_lost_at = 0
         self.settings = PolicySearchSettings(horizon=horizon)
         self.gradient_settings = PolicyGradientSettings(horizon=horizon)
         self.starts = np.zeros((0, obs_dim))
@@ -110,8 +121,20 @@ class FeedbackPlanning:
         if self.policy is None:
             return tested
         # Q acts after a search that kept it: ask again once the data have doubled
-        wait = SEARCH_EVERY if self.acting else max(SEARCH_EVERY, self.searched_at)
+        on_trial = self.acting or self.kept is not None
+        wait = SEARCH_EVERY if on_trial else max(SEARCH_EVERY, self.searched_at)
         return tested and n - self.searched_at >= wait
+
+    @property
+    def q_on_trial(self) -> bool:
+        """Whether ``Q`` acts on trial against the policy it replaced."""
+        return self.kept is not None and self.kept[3] and not self.acting
+
+    @property
+    def greedy_acting(self) -> bool:
+        """Whether greedy actions are a policy's: while it acts, and while ``Q`` is on trial
+        against it (the task has measured the policy; the model only doubts it)."""
+        return self.policy is not None and (self.acting or self.q_on_trial)
 
     @property
     def horizon(self) -> int:
@@ -146,17 +169,25 @@ class FeedbackPlanning:
         se = returns.std(ddof=1) / np.sqrt(len(returns))
         self.overshoot = float(short) if short > HOLDOUT_SE * se else 0.0
 
-    def _judge(self) -> None:
-        """Keep the weights on trial, or bring back those they replaced (module docstring)."""
+    def _judge(self) -> bool:
+        """Keep the actor on trial, or bring back the one it replaced (module docstring);
+        whether ``Q``, on trial, lost to the policy it replaced."""
         if self.kept is None:
-            return
+            return False
         gains, value, returns, acting = self.kept
+        self.kept = None
         new, old = np.array(self.returns), np.array(returns)
         if len(new) >= 2 and len(old) >= 2:
             se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
+            if acting and not self.acting:  # Q sent back by the model's level: the task's means
+                se = 0.0
             if new.mean() < old.mean() - HOLDOUT_SE * se:
+                q_lost = acting and not self.acting
+                if q_lost:  # Q's returns, fresh, are what the policy is set against
+                    self.q_returns = list(self.returns)
                 self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
-        self.kept = None
+                return q_lost
+        return False
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
         kind = MLPFeedback if self.net else LinearFeedback
@@ -171,7 +202,8 @@ class FeedbackPlanning:
                 self.gains = self.policy.initial(rng)
         elif self.real_test:
             self._calibrate()
-            self._judge()
+            if self._judge():
+                self.q_lost_at = n
         before = (self.gains, self.value, self.returns, self.acting)
         if isinstance(self.policy, MLPFeedback):
             self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
@@ -184,19 +216,25 @@ class FeedbackPlanning:
         expected = not q_returns or self.value - self.overshoot > np.mean(q_returns)
         if not self.real_test:
             self.acting = True
-        elif not expected and before[3]:  # the model no longer expects to beat Q: Q again
-            self.returns, self.acting, self.kept = list(self.q_returns), False, None
+        elif not expected and before[3] and n < 2 * self.q_lost_at:
+            self.gains, self.value = before[0], before[1]  # the task answered lately: they act
+        elif not expected and before[3]:  # Q again, on trial against the policy
+            self.kept, self.returns, self.acting = before, [], False
         elif expected and not np.array_equal(self.gains, before[0]):
             if not before[3]:
                 self.q_returns = list(before[2])
             self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
-        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
-        assert self.policy is not None and self.acting
-        a = self.policy.act(self.gains, s)
+        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise
+        (``rng`` None: greedy, with the weights ``Q`` is on trial against, if it is)."""
+        assert self.policy is not None
         if rng is None:
-            return a
+            assert self.greedy_acting
+            incumbent = self.kept[0] if self.kept is not None and not self.acting else None
+            return self.policy.act(self.gains if incumbent is None else incumbent, s)
+        assert self.acting
+        a = self.policy.act(self.gains, s)
         noise = EXPLORATION * self.policy.half * rng.standard_normal(a.shape)
         return np.clip(a + noise, self.low, self.high)
 
@@ -211,6 +249,7 @@ class FeedbackPlanning:
             "policy_q_returns": np.array(self.q_returns, dtype=np.float64),
             "policy_episode_from": np.array(self.episode_from),
             "policy_overshoot": np.array(self.overshoot),
+            "policy_q_lost_at": np.array(self.q_lost_at),
         }
         if self.policy is not None:
             arrays |= {
@@ -241,6 +280,10 @@ class FeedbackPlanning:
         if overshoot[0] < 0.0:
             raise ValueError(f"policy_overshoot must be >= 0, got {overshoot[0]}")
         self.overshoot = float(overshoot[0])
+        q_lost_at = np.asarray(a.get("policy_q_lost_at", 0))
+        if q_lost_at.shape != () or q_lost_at.dtype.kind not in "iu" or q_lost_at < 0:
+            raise ValueError(f"policy_q_lost_at must be one integer >= 0, got {q_lost_at!r}")
+        self.q_lost_at = int(q_lost_at)
         if "policy_gains" not in a:
             return
         policy = self._make(a["policy_center"], a["policy_scale"])

@@ -149,12 +149,6 @@ def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner
     expected = feedback.policy.act(feedback.gains, obs[None])[0]
     np.testing.assert_array_equal(agent.predict(obs)[0], expected)
     assert agent.rng.bit_generator.state == state
-    if planner == "policy-net":  # Q on trial against the policy: greedy actions stay its
-        incumbent = feedback.gains + 0.5
-        feedback.kept, feedback.acting = (incumbent, feedback.value, [-1.0, -2.0], True), False
-        assert not agent.planning.active and agent.planning.greedy_active
-        expected = feedback.policy.act(incumbent, obs[None])[0]
-        np.testing.assert_array_equal(agent.predict(obs)[0], expected)
 
 
 class PointToCentre(PointToGoal):

@@ -146,7 +146,7 @@ def test_the_gate_reads_the_model_less_what_it_last_promised_in_vain(
     assert abs(planning.value - promise) < 0.2  # fresh starts: the score moves a little
     assert planning.acting is bool(planning.value - overshoot > promise - 2.0) is acting
     assert planning.returns == (list(r) if acting else [])  # else Q's trial: returns afresh
-    assert planning.q_on_trial is not acting and planning.greedy_acting
+    assert planning.q_on_trial is not acting
 
 
 def test_weights_a_search_replaces_go_on_trial() -> None:
@@ -207,17 +207,13 @@ def _q_on_trial(on_trial: bool = False) -> tuple[FeedbackPlanning, GPDynamicsMod
 def test_a_policy_the_model_no_longer_expects_to_beat_q_puts_q_on_trial(on_trial: bool) -> None:
     """While a policy acts (its weights on trial or not), a search whose weights the model
     scores below the mean of ``Q``'s returns on record brings ``Q`` back, on trial against
-    the policy: ``Q``'s returns start afresh, greedy actions stay the policy's, and the
-    next search comes after ``Q``'s episodes; it starts from the weights found."""
+    the policy: ``Q``'s returns start afresh, and the next search comes after ``Q``'s
+    episodes; it starts from the weights found."""
     planning, _, _, before = _q_on_trial(on_trial)
     assert not planning.acting and planning.q_on_trial and planning.returns == []
     assert planning.kept is not None and planning.kept[2] == [-0.5, -0.6, -0.4]
     np.testing.assert_array_equal(planning.kept[0], before)
     np.testing.assert_array_equal(planning.gains, before)  # no Adam step: the same weights
-    planning.gains = before + 1.0  # as if the search had moved them
-    s = np.array([[0.3, -0.2]])
-    assert planning.policy is not None and planning.greedy_acting
-    np.testing.assert_array_equal(planning.action(s, None), planning.policy.act(before, s))
     planning.returns = [-0.2] * (TEST_EPISODES - 1)
     assert not planning.due(10_000)  # Q's episodes first
     planning.returns.append(-0.2)

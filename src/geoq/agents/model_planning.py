@@ -83,14 +83,6 @@ class ModelPlanning:
             return self.feedback.policy is not None and self.feedback.acting
         return self.mode != "off" and self.model.fitted
 
-    @property
-    def greedy_active(self) -> bool:
-        """Whether greedy actions are planned now: as :attr:`active`, and with
-        ``policy-net`` also while ``Q`` acts on trial against a policy."""
-        if self.policy_mode:
-            return self.feedback.greedy_acting
-        return self.active
-
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
         """Take in the buffer's newest transition: a fit when one is due, else a stream
         (``policy``: neither; the model is refitted at each search, :meth:`start_episode`,

@@ -41,16 +41,16 @@ search that keeps the weights it starts from changes no actor.
 
 Where a policy acted and the model no longer expects it to beat ``Q``, ``Q`` comes back
 on trial against it: ``Q``'s record is as old as the policy's reign, and the task, not
-the model, is asked whether ``Q`` now does better. ``Q``'s returns start afresh, greedy
-actions stay the policy's until the verdict, and the next search comes after ``Q``'s
-:data:`TEST_EPISODES` episodes. There, if the mean of ``Q``'s fresh returns is below the
-policy's (the means alone: two episodes of a task that falls or not are too spread for
-a test to have power), the policy acts again with the weights the task judged, ``Q``'s
-fresh returns become its record, and the model's score cannot send the policy back
-until the transitions have doubled since (``q_lost_at``). While ``Q`` acts after a
-search otherwise, the next waits until the transitions have doubled (as the model's
-fits do): a model that expected less than ``Q`` from its best weights is asked again
-once it has that much more data, not every :data:`SEARCH_EVERY` transitions.
+the model, is asked whether ``Q`` now does better. ``Q``'s returns start afresh, and the
+next search comes after ``Q``'s :data:`TEST_EPISODES` episodes. There, if the mean of
+``Q``'s fresh returns is below the policy's (the means alone: two episodes of a task
+that falls or not are too spread for a test to have power), the policy acts again with
+the weights the task judged, ``Q``'s fresh returns become its record, and the model's
+score cannot send the policy back until the transitions have doubled since
+(``q_lost_at``). While ``Q`` acts after a search otherwise, the next waits until the
+transitions have doubled (as the model's fits do): a model that expected less than
+``Q`` from its best weights is asked again once it has that much more data, not every
+:data:`SEARCH_EVERY` transitions.
 """
 
 from __future__ import annotations
@@ -129,12 +129,6 @@ class FeedbackPlanning:
     def q_on_trial(self) -> bool:
         """Whether ``Q`` acts on trial against the policy it replaced."""
         return self.kept is not None and self.kept[3] and not self.acting
-
-    @property
-    def greedy_acting(self) -> bool:
-        """Whether greedy actions are a policy's: while it acts, and while ``Q`` is on trial
-        against it (the task has measured the policy; the model only doubts it)."""
-        return self.policy is not None and (self.acting or self.q_on_trial)
 
     @property
     def horizon(self) -> int:
@@ -226,15 +220,11 @@ class FeedbackPlanning:
             self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
-        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise
-        (``rng`` None: greedy, with the weights ``Q`` is on trial against, if it is)."""
-        assert self.policy is not None
-        if rng is None:
-            assert self.greedy_acting
-            incumbent = self.kept[0] if self.kept is not None and not self.acting else None
-            return self.policy.act(self.gains if incumbent is None else incumbent, s)
-        assert self.acting
+        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
+        assert self.policy is not None and self.acting
         a = self.policy.act(self.gains, s)
+        if rng is None:
+            return a
         noise = EXPLORATION * self.policy.half * rng.standard_normal(a.shape)
         return np.clip(a + noise, self.low, self.high)
 

@@ -168,19 +168,18 @@ class FeedbackPlanning:
         whether ``Q``, on trial, lost to the policy it replaced."""
         if self.kept is None:
             return False
+        q_trial = self.q_on_trial  # Q sent back by the model's level: the task's means
         gains, value, returns, acting = self.kept
         self.kept = None
         new, old = np.array(self.returns), np.array(returns)
         if len(new) >= 2 and len(old) >= 2:
             se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
-            if acting and not self.acting:  # Q sent back by the model's level: the task's means
-                se = 0.0
+            se = 0.0 if q_trial else se
             if new.mean() < old.mean() - HOLDOUT_SE * se:
-                q_lost = acting and not self.acting
-                if q_lost:  # Q's returns, fresh, are what the policy is set against
+                if q_trial:  # Q's returns, fresh, are what the policy is set against
                     self.q_returns = list(self.returns)
                 self.gains, self.value, self.returns, self.acting = gains, value, returns, acting
-                return q_lost
+                return q_trial
         return False
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:

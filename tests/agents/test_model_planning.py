@@ -151,6 +151,25 @@ def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner
     assert agent.rng.bit_generator.state == state
 
 
+def test_a_greedy_action_is_the_policys_while_q_on_trial_trails_it() -> None:
+    """``Q`` on trial against the policy's weights: greedy actions are ``Q``'s until its
+    fresh returns so far have a mean below the policy's, then the policy's."""
+    agent = _policy_agent(planner="policy-net").learn(239)
+    feedback, obs = agent.planning.feedback, np.array([-0.2])
+    feedback.acting = False  # Q acts, as it would after a search that kept it
+    q_greedy = agent.predict(obs)[0]
+    incumbent = feedback.gains + 0.5
+    policy_greedy = feedback.policy.act(incumbent, obs[None])[0]
+    assert not np.array_equal(q_greedy, policy_greedy)
+    feedback.kept = (incumbent, 1.0, [-2.0, -3.0], True)  # Q on trial against them
+    feedback.returns = [-2.0]
+    assert not agent.planning.greedy_active and not agent.planning.active
+    np.testing.assert_array_equal(agent.predict(obs)[0], q_greedy)
+    feedback.returns = [-2.0, -3.5]
+    assert agent.planning.greedy_active and not agent.planning.active
+    np.testing.assert_array_equal(agent.predict(obs)[0], policy_greedy)
+
+
 class PointToCentre(PointToGoal):
     """:class:`PointToGoal`'s moves, paid ``-x'^2`` a step, never terminating: a regulator,
     where a feedback policy is the answer (``a = -1`` right of 0, ``+1`` left, until near)."""

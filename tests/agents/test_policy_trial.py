@@ -248,6 +248,27 @@ def test_q_on_trial_is_judged_on_the_means(fresh: list, q_wins: bool) -> None:
     assert planning.q_on_trial and planning.returns == []
 
 
+def test_greedy_actions_follow_q_on_trial_as_the_evidence_stands() -> None:
+    """Oracle by hand (the policy's mean: -0.5): while ``Q`` is on trial, greedy actions
+    are ``Q``'s until the mean of its fresh returns so far is below the policy's, then
+    those of the policy's weights ``Q`` replaced (not the weights the search found);
+    training actions are ``Q``'s throughout."""
+    planning, _, rng, before = _q_on_trial()
+    planning.gains = before + 1.0  # the weights the search found, which the next starts from
+    states = rng.uniform(-1.0, 1.0, (5, 2))
+    for fresh in ([], [-0.4], [-0.5], [-0.9, 0.0]):  # none yet, above, tied, above
+        planning.returns = fresh
+        assert planning.greedy_weights is None, fresh
+    for fresh in ([-0.6], [-0.4, -0.7]):
+        planning.returns = fresh
+        np.testing.assert_array_equal(planning.greedy_weights, before)
+        assert planning.policy is not None and not planning.acting
+        expected = planning.policy.act(before, states[:1])
+        np.testing.assert_array_equal(planning.action(states[:1], None), expected)
+    planning.acting, planning.kept = True, None  # a policy acting: its own weights
+    np.testing.assert_array_equal(planning.greedy_weights, before + 1.0)
+
+
 def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
     """An agent saved before ``Q``'s returns were kept beside a policy's has none to set
     the model's return against: its policy acts on."""

@@ -244,7 +244,7 @@ class GPQAgent:
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
             actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
-            if deterministic and self.planning.active:
+            if deterministic and self.planning.greedy_active:
                 actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None

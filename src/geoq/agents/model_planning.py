@@ -83,6 +83,15 @@ class ModelPlanning:
             return self.feedback.policy is not None and self.feedback.acting
         return self.mode != "off" and self.model.fitted
 
+    @property
+    def greedy_active(self) -> bool:
+        """Whether greedy actions are planned now: as :attr:`active`, but with ``policy`` or
+        ``policy-net`` whenever a policy's weights are the greedy ones
+        (:attr:`~geoq.agents.policy_planning.FeedbackPlanning.greedy_weights`)."""
+        if self.policy_mode:
+            return self.feedback.policy is not None and self.feedback.greedy_weights is not None
+        return self.active
+
     def observe(self, buffer: TransitionBuffer, rng: np.random.Generator) -> None:
         """Take in the buffer's newest transition: a fit when one is due, else a stream
         (``policy``: neither; the model is refitted at each search, :meth:`start_episode`,

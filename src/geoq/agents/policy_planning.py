@@ -51,6 +51,11 @@ score cannot send the policy back until the transitions have doubled since
 transitions have doubled (as the model's fits do): a model that expected less than
 ``Q`` from its best weights is asked again once it has that much more data, not every
 :data:`SEARCH_EVERY` transitions.
+
+Greedy actions follow ``Q``'s trial as its evidence stands (``greedy_weights``):
+``Q``'s, unless the mean of its fresh returns so far is below the policy's, then the
+policy's. A checkpoint taken a few episodes into the trial measures the actor the
+verdict would keep on them, not whichever the model's score happened to send back.
 """
 
 from __future__ import annotations
@@ -129,6 +134,20 @@ class FeedbackPlanning:
     def q_on_trial(self) -> bool:
         """Whether ``Q`` acts on trial against the policy it replaced."""
         return self.kept is not None and self.kept[3] and not self.acting
+
+    @property
+    def greedy_weights(self) -> FloatArray | None:
+        """The weights greedy actions follow (None: ``Q``'s): the acting policy's, and while
+        ``Q`` is on trial, the policy's it replaced once the mean of ``Q``'s fresh returns
+        so far is below that policy's (the verdict, on the episodes run so far)."""
+        if self.acting:
+            return self.gains
+        if self.q_on_trial and self.returns:
+            assert self.kept is not None
+            gains, _, returns, _ = self.kept
+            if np.mean(self.returns) < np.mean(returns):
+                return gains
+        return None
 
     @property
     def horizon(self) -> int:
@@ -219,11 +238,15 @@ class FeedbackPlanning:
             self.kept, self.returns, self.acting = before, [], True
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
-        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]; with ``rng`` plus the noise."""
-        assert self.policy is not None and self.acting
-        a = self.policy.act(self.gains, s)
+        """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]: with ``rng`` the acting
+        weights' plus the noise, else the :attr:`greedy_weights`'."""
+        assert self.policy is not None
         if rng is None:
-            return a
+            weights = self.greedy_weights
+            assert weights is not None
+            return self.policy.act(weights, s)
+        assert self.acting
+        a = self.policy.act(self.gains, s)
         noise = EXPLORATION * self.policy.half * rng.standard_normal(a.shape)
         return np.clip(a + noise, self.low, self.high)
 

@@ -125,6 +125,9 @@ def test_the_smooth_returns_gradient_is_its_finite_differences() -> None:
         running.append(int((w > 0).sum()))
     assert max(ends) > 0.0 and max(halts) > 1.0
     assert len(set(running)) > 2  # roll-outs stop for sure at different steps (not stepped on)
+    # the particles' model steps taken: each step counts the roll-outs alive at its start
+    taken = policy_gradient._soft_return(model, policy, params, starts, normals)[2]
+    assert taken == 6 + sum(running[:-1]) < 6 * 15
 
 
 def test_with_no_end_and_no_halt_the_smooth_return_is_the_exact_one() -> None:
@@ -184,9 +187,9 @@ def test_the_search_stops_where_the_gradients_square_overflows(monkeypatch) -> N
     def huge_later(model, policy, theta, picked, normals):  # type: ignore[no-untyped-def]
         seen.append(theta.copy())
         grad = np.full(policy.n_params, 1.0 if len(seen) < 3 else 1e200)
-        return float(len(seen)), grad
+        return float(len(seen)), grad, 1
 
-    monkeypatch.setattr(policy_gradient, "soft_return", huge_later)
+    monkeypatch.setattr(policy_gradient, "_soft_return", huge_later)
     search = PolicyGradientSettings(horizon=20, particles=4, steps=10, holdout_particles=2)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -195,11 +198,40 @@ def test_the_search_stops_where_the_gradients_square_overflows(monkeypatch) -> N
     assert np.array_equal(params, start) or np.array_equal(params, seen[1])
 
 
+def test_a_models_step_cost_is_its_basis_vectors_times_its_inputs() -> None:
+    model = _ending_model(np.random.default_rng(7))
+    basis = sum(gp.n_bv for gp in model.gps if gp is not None)
+    assert basis > 0 and model.step_cost == basis * (3 + 1)
+
+
+@pytest.mark.parametrize(("units", "evaluated"), [(None, 10), (3.0, 3), (2.5, 3), (0.0, 1)])
+def test_the_adam_steps_stop_once_the_budget_is_spent(monkeypatch, units, evaluated) -> None:
+    """Each return taken costs 5 particles' steps times the model's step cost: a budget of
+    ``units`` of them (None: none) stops the steps at the return that spends it."""
+    rng = np.random.default_rng(5)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=4)
+    seen: list[np.ndarray] = []
+
+    def counted(model, policy, theta, picked, normals):  # type: ignore[no-untyped-def]
+        seen.append(theta.copy())
+        return -float(len(seen)), np.ones(policy.n_params), 5
+
+    monkeypatch.setattr(policy_gradient, "_soft_return", counted)
+    budget = 1e300 if units is None else units * 5 * model.step_cost
+    search = PolicyGradientSettings(horizon=20, particles=4, steps=10, holdout_particles=2,
+                                    budget=budget)  # fmt: skip
+    search_policy(model, policy, policy.initial(rng), STARTS, rng, search)
+    assert len(seen) == evaluated
+
+
 def test_bad_settings_and_shapes_are_refused() -> None:
     with pytest.raises(ValueError, match="holdout_particles"):
         PolicyGradientSettings(holdout_particles=1)
     with pytest.raises(ValueError, match="learning_rate"):
         PolicyGradientSettings(learning_rate=-1.0)
+    with pytest.raises(ValueError, match="budget"):
+        PolicyGradientSettings(budget=float("nan"))
     with pytest.raises(ValueError, match="high > low"):
         MLPFeedback(np.array([1.0]), np.array([1.0]), np.zeros(2), np.ones(2))
     with pytest.raises(ValueError, match="hidden"):

@@ -294,6 +294,14 @@ class GPDynamicsModel:
                                  np.concatenate(alpha), variance, cols)  # fmt: skip
         return self._means
 
+    @property
+    def step_cost(self) -> int:
+        """Kernel terms one particle's model step computes, times the inputs: ``M`` basis
+        vectors over every output times ``D`` (the compiled means' inner loop; a policy
+        search's unit of cost)."""
+        basis = self._mean_weights().basis
+        return int(basis.shape[0] * basis.shape[1])
+
     def predict_mean(self, states: FloatArray, actions: FloatArray) -> FloatArray:
         """Predictive means ``[P, J]`` of ``P`` particles ``states`` [P, d_s], ``actions``
         [P, d_a], in the data's units: columns ``0..d_s-1`` the state change, ``d_s`` the

@@ -60,6 +60,11 @@ class PolicyGradientSettings:
     (False: follow their means; the particles differ by their starts)."""
     holdout_particles: int = 64
     """Roll-outs from fresh starts that the found weights must win on."""
+    budget: float = 4e10
+    """Work the Adam steps may ask of the model per search, in
+    :attr:`~geoq.models.GPDynamicsModel.step_cost` units summed over the particles' steps
+    (ended roll-outs cost nothing); the steps stop once it is spent. About a minute of one
+    core at 1.5 ns a unit (docs/design-notes.md, part twelve)."""
 
     def __post_init__(self) -> None:
         check_int(self.horizon, "horizon", minimum=1, maximum=100_000)
@@ -67,6 +72,7 @@ class PolicyGradientSettings:
         check_int(self.holdout_particles, "holdout_particles", minimum=2, maximum=100_000)
         check_int(self.steps, "steps", minimum=0, maximum=100_000)
         check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
+        check_real(self.budget, "budget", low=0.0)
 
 
 class MLPFeedback(FeedbackBase):
@@ -137,6 +143,18 @@ def soft_return(
     """The mean smooth return (module docstring) of ``P`` roll-outs from ``starts`` [P, d_s]
     under the weights ``params`` over ``T`` model steps with the state changes' standard
     normals ``normals`` [T, P, d_s], and its gradient ``[n_params]``."""
+    value, grad, _ = _soft_return(model, policy, params, starts, normals)
+    return value, grad
+
+
+def _soft_return(
+    model: GPDynamicsModel,
+    policy: MLPFeedback,
+    params: FloatArray,
+    starts: FloatArray,
+    normals: FloatArray,
+) -> tuple[float, FloatArray, int]:
+    """:func:`soft_return`, and the particles' model steps it took."""
     T, (P, d) = normals.shape[0], starts.shape
     r_least = float(model.reward_range[0])
     S, w, total = starts.copy(), np.ones(P), np.zeros(P)
@@ -178,7 +196,7 @@ def soft_return(
         grad += g_params
         g_next[rows] = g_state + g_input[:, :d] + g_policy_state
         gw_next[rows] = reward + gw * (1.0 - end) * (1.0 - halt)
-    return float(total.mean()), grad / P
+    return float(total.mean()), grad / P, sum(len(step[0]) for step in tape)
 
 
 def search_policy(
@@ -193,7 +211,9 @@ def search_policy(
     ``particles`` starts drawn from ``starts`` [N, d_s] and normals drawn once, and their
     exact return on fresh draws; the current ``params`` and theirs unless the found weights
     beat them there by :data:`~geoq.models.policy_search.HOLDOUT_SE` paired standard
-    errors (module docstring)."""
+    errors (module docstring). The Adam steps stop after ``steps``, or once they have
+    asked the model for ``budget`` units of work (the particles' model steps times
+    :attr:`~geoq.models.GPDynamicsModel.step_cost`)."""
     c = settings or PolicyGradientSettings()
     params = as_float_vector(params, "params", policy.n_params)
     starts = as_float_matrix(starts, "starts", model.obs_dim)
@@ -202,14 +222,18 @@ def search_policy(
     theta, m, v = params.copy(), np.zeros_like(params), np.zeros_like(params)
     best, best_value = params, -np.inf
     beta1, beta2 = 0.9, 0.999
+    unit, spent = model.step_cost, 0.0
     for k in range(1, c.steps + 1):
-        value, grad = soft_return(model, policy, theta, picked, normals)
+        value, grad, taken = _soft_return(model, policy, theta, picked, normals)
         with np.errstate(over="ignore"):  # a return chaotic in the weights: stop there
             square = grad * grad
         if not (np.isfinite(value) and np.all(np.isfinite(square))):
             break
         if value > best_value:
             best, best_value = theta.copy(), value
+        spent += taken * unit
+        if spent >= c.budget:  # a step after this one would not be scored
+            break
         m = beta1 * m + (1 - beta1) * grad
         v = beta2 * v + (1 - beta2) * square
         step = (m / (1 - beta1**k)) / (np.sqrt(v / (1 - beta2**k)) + 1e-8)

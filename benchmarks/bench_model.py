@@ -26,6 +26,15 @@ Fourth table: the same smooth return with ends (16 particles over 200 model step
 weights of which some end their roll-outs early), stepping only the roll-outs still
 running, against stepping every one to the horizon (the reverse pass before it
 learned to skip, in the same process; values and gradients agree to 1e-9).
+
+Fifth table: what a search's budget (``PolicyGradientSettings.budget``) buys at three
+task sizes, each output at its full 200 basis vectors and every roll-out running the
+whole horizon (the costliest search of that size): the model's
+:attr:`~geoq.models.GPDynamicsModel.step_cost`, the seconds per unit of it of one
+timed :func:`~geoq.models.soft_return` (16 particles), the Adam steps the budget
+allows (at most the default 100), and the Adam steps' seconds under the budget against
+those of 100 steps (both from the one timed return: the 100 steps of the largest size
+take minutes).
 """
 
 from __future__ import annotations
@@ -39,6 +48,7 @@ from geoq.models import (
     LinearFeedback,
     MLPFeedback,
     ModelSettings,
+    PolicyGradientSettings,
     policy_returns,
     rollout_returns,
     soft_return,
@@ -99,6 +109,7 @@ def main(quick: bool = False) -> None:
     search_scoring(quick)
     gradient_cost(quick)
     gradient_running_only(quick)
+    search_budget(quick)
 
 
 def _every_particle(model, policy, gains, starts, normals):  # type: ignore[no-untyped-def]
@@ -204,6 +215,30 @@ def gradient_running_only(quick: bool = False) -> None:
         fast = _seconds(lambda: soft_return(*args, normals), repeats)  # noqa: B023
         slow = _seconds(lambda: _soft_every_particle(*args, horizon), repeats)  # noqa: B023
         print(f"{name:<22} {1e3 * fast:>11.1f}ms {1e3 * slow:>13.1f}ms {slow / fast:>6.1f}x")
+
+
+#: The fifth table's sizes: InvertedPendulum's, Reacher's and HalfCheetah's, with their
+#: search horizons (the task's time limit, at most 1,000 steps).
+BUDGET_SIZES = (("4 + 1, 1,000 steps", 4, 1, 1000), ("10 + 2, 50 steps", 10, 2, 50),
+                ("17 + 6, 1,000 steps", 17, 6, 1000))  # fmt: skip
+
+
+def search_budget(quick: bool = False) -> None:
+    """The fifth table (module docstring)."""
+    n, max_bv, scale = (200, 30, 20) if quick else (2000, 200, 1)
+    budget, steps = PolicyGradientSettings().budget, PolicyGradientSettings().steps
+    print(f"\n{'task sizes':<22} {'step cost':>10} {'ns a unit':>10} {'Adam steps':>11} "
+          f"{'budgeted':>9} {'100 steps':>10} {'ratio':>7}")  # fmt: skip
+    for name, d_s, d_a, horizon in BUDGET_SIZES:
+        horizon //= scale
+        model = _model(d_s, d_a, n, max_bv, ends=False)
+        model.support.spacing = 1e9  # no halt: every roll-out runs the whole horizon
+        policy, params, starts, normals = _net_case(model, 5, 0.3, horizon)
+        one = _seconds(lambda: soft_return(model, policy, params, starts, normals), 1)  # noqa: B023
+        work = 16 * horizon * model.step_cost  # one return's units
+        allowed = min(steps, int(np.ceil(budget / work)))
+        print(f"{name:<22} {model.step_cost:>10,} {1e9 * one / work:>10.2f} {allowed:>11} "
+              f"{allowed * one:>8.1f}s {steps * one:>9.1f}s {steps / allowed:>6.1f}x")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -251,8 +251,8 @@ def test_q_on_trial_is_judged_on_the_means(fresh: list, q_wins: bool) -> None:
 def test_greedy_actions_follow_q_on_trial_as_the_evidence_stands() -> None:
     """Oracle by hand (the policy's mean: -0.5): while ``Q`` is on trial, greedy actions
     are ``Q``'s until the mean of its fresh returns so far is below the policy's, then
-    those of the policy's weights ``Q`` replaced (not the weights the search found);
-    training actions are ``Q``'s throughout."""
+    those of the policy's weights ``Q`` replaced (not the weights the search found),
+    while ``Q`` still acts."""
     planning, _, rng, before = _q_on_trial()
     planning.gains = before + 1.0  # the weights the search found, which the next starts from
     states = rng.uniform(-1.0, 1.0, (5, 2))

@@ -85,3 +85,49 @@ def test_a_layout_in_another_box_observes_the_unit_square_rescaled() -> None:
     su, _ = unit.reset(seed=1)
     sb, _ = big.reset(seed=1)
     np.testing.assert_allclose(sb, -5.0 + 10.0 * su, rtol=0, atol=1e-12)
+
+
+def _cartpole() -> Any:
+    """``research/heldout/cartpole_swingup`` (the scripts are not a package)."""
+    path = str(RESEARCH / "heldout")
+    if path not in sys.path:
+        sys.path.insert(0, path)
+    import cartpole_swingup
+
+    return cartpole_swingup
+
+
+@pytest.mark.skipif(not RESEARCH.is_dir(), reason="research/ not shipped here")
+def test_the_held_out_cartpole_steps_as_scipys_integrator_does() -> None:
+    """The held-out swing-up's RK4 step against ``scipy.integrate.solve_ivp`` on the same
+    equations (an independent integrator), from hanging, sideways and upright states."""
+    from scipy.integrate import solve_ivp
+
+    cp = _cartpole()
+    for z0, force in [((0.1, -0.3, 3.0, 1.0), 4.0), ((0.0, 0.5, 1.5, -2.0), -10.0),
+                      ((-1.0, 0.0, 0.2, 0.0), 0.0)]:  # fmt: skip
+        z0 = np.array(z0)
+        exact = solve_ivp(lambda t, z, f=force: cp._derivative(z, f), (0.0, cp.DT), z0,
+                          rtol=1e-12, atol=1e-12).y[:, -1]  # fmt: skip
+        # RK4's own error over one 0.05 s step is about 1e-4; a wrong term moves omega by 0.1+
+        np.testing.assert_allclose(cp.cartpole_step(z0, force), exact, rtol=0, atol=1e-3)
+
+
+@pytest.mark.skipif(not RESEARCH.is_dir(), reason="research/ not shipped here")
+def test_the_held_out_cartpole_hangs_still_falls_from_upright_and_pays_the_pole_up() -> None:
+    """Hanging is stable and upright is not (PILCO's angle convention, flipped); the reward
+    is about 0 hanging and 1 upright at the centre; the rail ends an episode."""
+    cp = _cartpole()
+    hang, up = np.array([0.0, 0.0, np.pi + 0.1, 0.0]), np.array([0.0, 0.0, 0.1, 0.0])
+    for _ in range(10):
+        hang, up = cp.cartpole_step(hang, 0.0), cp.cartpole_step(up, 0.0)
+    assert abs(hang[2] - np.pi) < 0.1 and abs(up[2]) > 0.2
+    env = cp.CartPoleSwingUpEnv()
+    env.reset(seed=0)
+    env._z = np.array([0.0, 0.0, 0.0, 0.0])
+    _, r_up, *_ = env.step(np.zeros(1))
+    env._z = np.array([0.0, 0.0, np.pi, 0.0])
+    _, r_hang, *_ = env.step(np.zeros(1))
+    env._z = np.array([cp.RAIL, 1.0, np.pi, 0.0])
+    *_, terminated, _, _ = env.step(np.zeros(1))
+    assert r_up > 0.99 and r_hang < 1e-3 and terminated

@@ -12,7 +12,8 @@ where the barrier is:
   weights' model return and their greedy return on 10 real episodes;
   ``--no-halt`` searches with the support's halt switched off;
 - ``mpc``: model-predictive control through the agent's model (the cross-entropy
-  method over ``--horizon`` steps of its means, 200 sequences, 5 iterations, 20 elites)
+  method over ``--horizon`` steps of its means; ``--samples`` sequences, 200, refitted
+  ``--iterations`` times, 5, to the best tenth)
   on ``--episodes`` real episodes, and with ``--true-dynamics`` through the task's own
   step instead (the bound a perfect model gives this planner);
 - ``distill``: ``--rounds`` rounds of DAgger (Ross et al. 2011): the network fitted by
@@ -207,9 +208,13 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=2)
     parser.add_argument("--horizon", type=int, default=40)
     parser.add_argument("--true-dynamics", action="store_true")
+    parser.add_argument("--samples", type=int, default=CEM["samples"])
+    parser.add_argument("--iterations", type=int, default=CEM["iterations"])
     parser.add_argument("--rounds", type=int, default=4)
     args = parser.parse_args()
     path = args.agent or Path(f"/tmp/cps_{args.seed}_{args.steps}.npz")
+    CEM.update(samples=args.samples, iterations=args.iterations,
+               elites=max(2, args.samples // 10))  # fmt: skip
     agent = load_agent(path, args.seed, args.steps)
     if args.probe == "search":
         run_search(agent, args.specs, halt=not args.no_halt)

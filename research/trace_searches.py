@@ -17,7 +17,7 @@ research/heldout/cartpole_swingup.py`` for ``heldout/CartPoleSwingUp-v0``.
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import runpy
 import time
 from typing import Any
 
@@ -34,9 +34,7 @@ def main() -> None:
     parser.add_argument("--module", default=None, help="a .py file to import first")
     args = parser.parse_args()
     if args.module:
-        spec = importlib.util.spec_from_file_location("extra_tasks", args.module)
-        assert spec is not None and spec.loader is not None
-        spec.loader.exec_module(importlib.util.module_from_spec(spec))
+        runpy.run_path(args.module)  # registers its tasks
 
     from geoq.agents import GPQAgent
     from geoq.agents.policy_planning import FeedbackPlanning

@@ -9,6 +9,7 @@ scale), a reward that is one real number, ``terminated`` / ``truncated`` boolean
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from numbers import Real
@@ -40,6 +41,7 @@ __all__ = [
     "env_reset",
     "env_step",
     "initial_scaling",
+    "is_registered",
     "make_progress_bar",
     "matching_env",
     "observation_box",
@@ -49,13 +51,26 @@ __all__ = [
 ]
 
 
+def is_registered(env_id: str) -> bool:
+    """Whether ``gymnasium.make(env_id)`` finds ``env_id`` in Gymnasium's registry. As there,
+    an id ``"module:Id"`` imports ``module`` first (its import registers ``Id``); a module
+    that cannot be found is ``False``, any other error of its import is raised."""
+    module, _, name = env_id.rpartition(":")
+    if module:
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError:
+            return False
+    return name in gymnasium.registry
+
+
 def as_env(env: gymnasium.Env | str) -> gymnasium.Env:
-    """``env``, or the registered env of that id."""
+    """``env``, or the registered env of that id (``"module:Id"``: :func:`is_registered`)."""
     if isinstance(env, str):
-        if env not in gymnasium.registry:
+        if not is_registered(env):
             raise ValueError(
                 f"env {env!r} is not a registered Gymnasium id; see `geoq info` for geoq's, "
-                "or pass a gymnasium.Env"
+                "pass a gymnasium.Env, or name the module that registers it as 'module:Id'"
             )
         return gymnasium.make(env)
     if not isinstance(env, gymnasium.Env):

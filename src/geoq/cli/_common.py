@@ -146,14 +146,13 @@ def check_scheduler(scheduler: str | None, backend: Backend) -> None:
 
 def check_env(env_id: str, option: str = "--env") -> None:
     """A usage error unless ``env_id`` is a registered env the agent can learn (1-D Box
-    spaces, a bounded action box)."""
-    import gymnasium
+    spaces, a bounded action box); ``"module:Id"`` imports ``module`` first."""
+    from geoq.agents._env import agent_spaces, as_env, is_registered
 
-    from geoq.agents._env import agent_spaces, as_env
-
-    if env_id not in gymnasium.registry:
+    if not is_registered(env_id):
         raise typer.BadParameter(
-            f"{env_id!r} is not a registered Gymnasium id (`geoq info` lists geoq's envs)",
+            f"{env_id!r} is not a registered Gymnasium id (`geoq info` lists geoq's envs; "
+            "an env of your own: 'module:Id', the module registering Id on import)",
             param_hint=f"'{option}'",
         )
     try:

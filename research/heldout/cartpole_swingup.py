@@ -16,14 +16,16 @@ among them") on a swing-up past four inputs.
   the rail, ``|x| > 2.4``; it is truncated after 200 steps (10 s).
 - Starts hanging, ``theta = pi``, with N(0, 0.05^2) noise on all four coordinates.
 
-Registered on import as ``heldout/CartPoleSwingUp-v0``. geoq's CLI needs the id in the
-registry of every process, its sweep's workers included: put this folder on
-``PYTHONPATH`` with a ``sitecustomize.py`` that imports this module, e.g.
+Registered on import as ``heldout/CartPoleSwingUp-v0``. geoq's CLI takes it as
+``gymnasium.make`` does, by the module that registers it (imported again by a sweep's
+workers), with this folder on ``PYTHONPATH``:
 
-    mkdir -p /tmp/heldout && cp research/heldout/cartpole_swingup.py /tmp/heldout/ &&
-    echo "import cartpole_swingup" > /tmp/heldout/sitecustomize.py &&
-    PYTHONPATH=/tmp/heldout geoq bench-control --env heldout/CartPoleSwingUp-v0 \\
+    PYTHONPATH=research/heldout geoq bench-control \\
+        --env cartpole_swingup:heldout/CartPoleSwingUp-v0 \\
         --seeds 5 --timesteps 5000 --eval-every 500 --eval-episodes 10 --out DIR -j 2
+
+(Part thirteen's runs, before geoq took ``module:Id``, imported it from a
+``sitecustomize.py`` on ``PYTHONPATH`` instead: the same task, the same numbers.)
 
 ``python research/heldout/cartpole_swingup.py --help`` checks that it loads; with
 ``--steps N`` it runs one ``GPQAgent`` with defaults for ``N`` steps and prints its greedy

@@ -9,14 +9,15 @@ steps in chunks of ``--every`` and prints, at each checkpoint, the mean greedy r
 of ``--episodes`` episodes (evaluation seed ``10_000 + seed``) and the seconds spent
 learning and evaluating.
 
-    .venv/bin/python research/probe_cem_horizon.py heldout/CartPoleSwingUp-v0 \\
-        --module research/heldout/cartpole_swingup.py --seed 0 --horizon 30 --samples 100
+    PYTHONPATH=research/heldout .venv/bin/python research/probe_cem_horizon.py \\
+        cartpole_swingup:heldout/CartPoleSwingUp-v0 --seed 0 --horizon 30 --samples 100
+
+(an env of one's own named ``module:Id``, as ``gymnasium.make`` names it).
 """
 
 from __future__ import annotations
 
 import argparse
-import runpy
 import time
 
 
@@ -30,10 +31,7 @@ def main() -> None:
     parser.add_argument("--horizon", type=int, default=30)
     parser.add_argument("--samples", type=int, default=100)
     parser.add_argument("--iterations", type=int, default=3)
-    parser.add_argument("--module", default=None, help="a .py file to import first")
     args = parser.parse_args()
-    if args.module:
-        runpy.run_path(args.module)  # registers its tasks
 
     import geoq.agents.model_planning as model_planning
     from geoq.agents import GPQAgent

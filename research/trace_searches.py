@@ -10,14 +10,13 @@ policy switched off for the evaluation.
 
     .venv/bin/python research/trace_searches.py Walker2d-v5 --seed 3
 
-Extra Gymnasium tasks are registered by importing a module first, e.g. ``--module
-research/heldout/cartpole_swingup.py`` for ``heldout/CartPoleSwingUp-v0``.
+An env of one's own is named ``module:Id``, as ``gymnasium.make`` names it, e.g.
+``PYTHONPATH=research/heldout ... cartpole_swingup:heldout/CartPoleSwingUp-v0``.
 """
 
 from __future__ import annotations
 
 import argparse
-import runpy
 import time
 from typing import Any
 
@@ -31,10 +30,7 @@ def main() -> None:
     parser.add_argument("env")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=5000)
-    parser.add_argument("--module", default=None, help="a .py file to import first")
     args = parser.parse_args()
-    if args.module:
-        runpy.run_path(args.module)  # registers its tasks
 
     from geoq.agents import GPQAgent
     from geoq.agents.policy_planning import FeedbackPlanning

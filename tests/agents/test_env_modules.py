@@ -11,9 +11,11 @@ from pathlib import Path
 
 import gymnasium
 import pytest
+from typer.testing import CliRunner
 
 from geoq.agents import GPQAgent
 from geoq.agents._env import is_registered
+from geoq.cli import app
 
 TASKS = """
 import gymnasium
@@ -48,8 +50,16 @@ def test_a_module_that_cannot_be_found_is_not_registered_and_other_errors_say_so
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(RuntimeError, match="broken x"):  # the module's own error, not hidden
         is_registered("geoq_user_tasks_broken:X-v0")
+    _module(tmp_path, "geoq_user_tasks_needs", "x", body="import geoq_no_such_dependency  # {id}")
+    with pytest.raises(ModuleNotFoundError, match="geoq_no_such_dependency"):
+        is_registered("geoq_user_tasks_needs:X-v0")  # its own missing import, said
     _module(tmp_path, "geoq_user_tasks_empty", "x", body="# registers nothing {id}")
     assert not is_registered("geoq_user_tasks_empty:geoquser/Missing-v0")
+    for env_id, said in [("geoq_user_tasks_broken:X-v0", "broken x"),
+                         ("geoq_no_such_module:X-v0", "'module:Id'")]:  # fmt: skip
+        result = CliRunner().invoke(app, ["train", "--env", env_id, "--out", str(tmp_path / "o")])
+        assert result.exit_code == 2 and said in result.output, result.output
+        assert "'--env'" in result.output and "Traceback" not in result.output
 
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="-j 2 is capped to one job on one core")

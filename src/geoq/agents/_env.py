@@ -54,12 +54,15 @@ __all__ = [
 def is_registered(env_id: str) -> bool:
     """Whether ``gymnasium.make(env_id)`` finds ``env_id`` in Gymnasium's registry. As there,
     an id ``"module:Id"`` imports ``module`` first (its import registers ``Id``); a module
-    that cannot be found is ``False``, any other error of its import is raised."""
+    that cannot be found is ``False``, any other error of its import (a module it imports
+    in turn missing, say) is raised."""
     module, _, name = env_id.rpartition(":")
     if module:
         try:
             importlib.import_module(module)
-        except ModuleNotFoundError:
+        except ModuleNotFoundError as exc:
+            if exc.name is None or not (module + ".").startswith(exc.name + "."):
+                raise
             return False
     return name in gymnasium.registry
 

@@ -149,7 +149,12 @@ def check_env(env_id: str, option: str = "--env") -> None:
     spaces, a bounded action box); ``"module:Id"`` imports ``module`` first."""
     from geoq.agents._env import agent_spaces, as_env, is_registered
 
-    if not is_registered(env_id):
+    try:
+        known = is_registered(env_id)
+    except Exception as exc:  # the module named before the id failed on import
+        raise typer.BadParameter(f"importing the module of {env_id!r} failed: {one_line(exc)}",
+                                 param_hint=f"'{option}'") from exc  # fmt: skip
+    if not known:
         raise typer.BadParameter(
             f"{env_id!r} is not a registered Gymnasium id (`geoq info` lists geoq's envs; "
             "an env of your own: 'module:Id', the module registering Id on import)",

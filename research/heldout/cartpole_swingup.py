@@ -74,6 +74,19 @@ def cartpole_step(z: np.ndarray, force: float | np.ndarray) -> np.ndarray:
     return z + DT / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
+def observe(z: np.ndarray) -> np.ndarray:
+    """The observation ``(x, v, cos theta, sin theta, omega)`` ``[..., 5]`` of states
+    ``[..., 4]``."""
+    x, v, theta, omega = np.moveaxis(z, -1, 0)
+    return np.stack([x, v, np.cos(theta), np.sin(theta), omega], axis=-1)
+
+
+def reward(z: np.ndarray) -> np.ndarray:
+    """The reward ``[...]`` on reaching states ``[..., 4]``: the pole up, the cart centred."""
+    x, theta = z[..., 0], z[..., 2]
+    return (1 + np.cos(theta)) / 2 * (1 + np.exp(-(x**2))) / 2
+
+
 class CartPoleSwingUpEnv(gymnasium.Env):
     """Swing the pole up from hanging and balance it, the cart kept on its rail."""
 
@@ -85,21 +98,15 @@ class CartPoleSwingUpEnv(gymnasium.Env):
         self.action_space = spaces.Box(-FORCE, FORCE, shape=(1,), dtype=np.float64)
         self._z = np.zeros(4)
 
-    def _observe(self) -> np.ndarray:
-        x, v, theta, omega = self._z
-        return np.array([x, v, np.cos(theta), np.sin(theta), omega])
-
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self._z = np.array([0.0, 0.0, np.pi, 0.0]) + self.np_random.normal(0.0, 0.05, 4)
-        return self._observe(), {}
+        return observe(self._z), {}
 
     def step(self, action):
         force = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -FORCE, FORCE))
         self._z = cartpole_step(self._z, force)
-        x, _, theta, _ = self._z
-        reward = (1 + np.cos(theta)) / 2 * (1 + np.exp(-(x**2))) / 2
-        return self._observe(), float(reward), bool(abs(x) > RAIL), False, {}
+        return observe(self._z), float(reward(self._z)), bool(abs(self._z[0]) > RAIL), False, {}
 
 
 if CARTPOLE_SWING_UP_ID not in gymnasium.registry:

@@ -64,10 +64,6 @@ def greedy_return(agent: Any, weights: np.ndarray, episodes: int = 10) -> float:
         fb.gains, fb.acting, fb.kept = saved
 
 
-def observe(z: np.ndarray) -> np.ndarray:
-    return np.array([z[0], z[1], np.cos(z[2]), np.sin(z[2]), z[3]])
-
-
 def cem_first_action(score: Any, mean: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """The CEM's mean action sequence ``[H]`` for ``score`` (sequences ``[P, H]`` -> ``[P]``)."""
     std = np.full(mean.shape, CEM["init_std"])
@@ -100,7 +96,7 @@ def true_score(z: np.ndarray) -> Any:
         for h in range(A.shape[1]):
             Z = cp.cartpole_step(Z, A[:, h])
             alive *= np.abs(Z[:, 0]) <= cp.RAIL
-            ret += alive * (1 + np.cos(Z[:, 2])) / 2 * (1 + np.exp(-(Z[:, 0] ** 2))) / 2
+            ret += alive * cp.reward(Z)
         return ret
 
     return score
@@ -111,9 +107,9 @@ def episode(act: Any, rng: np.random.Generator) -> tuple[float, list[np.ndarray]
     z = np.array([0.0, 0.0, np.pi, 0.0]) + rng.normal(0.0, 0.05, 4)
     total, seen = 0.0, []
     for _ in range(cp.MAX_STEPS):
-        seen.append(observe(z))
+        seen.append(cp.observe(z))
         z = cp.cartpole_step(z, float(act(z, seen[-1])))
-        total += (1 + np.cos(z[2])) / 2 * (1 + np.exp(-(z[0] ** 2))) / 2
+        total += float(cp.reward(z))
         if abs(z[0]) > cp.RAIL:
             break
     return total, seen

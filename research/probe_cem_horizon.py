@@ -31,6 +31,7 @@ def main() -> None:
     parser.add_argument("--horizon", type=int, default=30)
     parser.add_argument("--samples", type=int, default=100)
     parser.add_argument("--iterations", type=int, default=3)
+    parser.add_argument("--planner", choices=("cem", "cem-q"), default="cem")
     args = parser.parse_args()
 
     import geoq.agents.model_planning as model_planning
@@ -42,7 +43,7 @@ def main() -> None:
     settings = PlannerSettings(horizon=args.horizon, samples=args.samples,
                                iterations=args.iterations, elites=elites)  # fmt: skip
     model_planning.PlannerSettings = lambda: settings  # type: ignore[assignment,misc]
-    agent = GPQAgent(args.env, seed=args.seed, planner="cem")
+    agent = GPQAgent(args.env, seed=args.seed, planner=args.planner)
     print(f"{settings}", flush=True)
     learning = 0.0
     for done in range(args.every, args.steps + 1, args.every):

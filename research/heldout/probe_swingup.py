@@ -16,6 +16,11 @@ where the barrier is:
   ``--iterations`` times, 5, to the best tenth)
   on ``--episodes`` real episodes, and with ``--true-dynamics`` through the task's own
   step instead (the bound a perfect model gives this planner);
+- ``branch``: ``--rounds`` searches of 400 Adam steps each, one after the other, up
+  the return of 30-step roll-outs branched from the agent's stored states (part
+  fourteen's search, the agent's default since), from the acting weights (``--fresh``:
+  from new ones), each judged over the whole episode as the agent judges it; the
+  weights' model return and greedy return after each;
 - ``distill``: ``--rounds`` rounds of DAgger (Ross et al. 2011): the network fitted by
   least squares to the model-MPC's actions at the states the student (the MPC itself
   in round 0) visits, its greedy return after each round.
@@ -163,6 +168,26 @@ def run_mpc(agent: Any, episodes: int, horizon: int, true_dynamics: bool) -> Non
               f"({time.perf_counter() - start:.0f} s)", flush=True)  # fmt: skip
 
 
+def run_branch(agent: Any, rounds: int, fresh: bool) -> None:
+    from geoq.models import PolicyGradientSettings, search_policy
+
+    fb, model = agent.planning.feedback, agent.planning.model
+    states = agent.buffer.arrays()[0]
+    rng = np.random.default_rng(0)
+    w = fb.policy.initial(rng) if fresh else fb.gains
+    settings = PolicyGradientSettings(horizon=fb.horizon, particles=64, steps=400,
+                                      branch_horizon=30, budget=1e14)  # fmt: skip
+    print(f"start: greedy {greedy_return(agent, w):.1f}", flush=True)
+    for k in range(rounds):
+        start = time.perf_counter()
+        found, value = search_policy(model, fb.policy, w, fb.starts, rng, settings, states)
+        kept = np.array_equal(found, w)
+        w = found
+        print(f"search {k}: model {value:.1f}, greedy {greedy_return(agent, w):.1f}, "
+              f"{'kept' if kept else 'moved'} ({time.perf_counter() - start:.0f} s)",
+              flush=True)  # fmt: skip
+
+
 def run_distill(agent: Any, rounds: int, horizon: int) -> None:
     from scipy.optimize import minimize
 
@@ -195,7 +220,7 @@ def run_distill(agent: Any, rounds: int, horizon: int) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("probe", choices=["search", "mpc", "distill"])
+    parser.add_argument("probe", choices=["search", "mpc", "branch", "distill"])
     parser.add_argument("specs", nargs="*", help="search: settings as key=value[,key=value]")
     parser.add_argument("--seed", type=int, default=2)
     parser.add_argument("--steps", type=int, default=2500)
@@ -207,6 +232,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=CEM["samples"])
     parser.add_argument("--iterations", type=int, default=CEM["iterations"])
     parser.add_argument("--rounds", type=int, default=4)
+    parser.add_argument("--fresh", action="store_true", help="branch: from new weights")
     args = parser.parse_args()
     path = args.agent or Path(f"/tmp/cps_{args.seed}_{args.steps}.npz")
     CEM.update(samples=args.samples, iterations=args.iterations,
@@ -216,6 +242,8 @@ def main() -> None:
         run_search(agent, args.specs, halt=not args.no_halt)
     elif args.probe == "mpc":
         run_mpc(agent, args.episodes, args.horizon, args.true_dynamics)
+    elif args.probe == "branch":
+        run_branch(agent, args.rounds, args.fresh)
     else:
         run_distill(agent, args.rounds, args.horizon)
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from geoq._typing import FloatArray
-from geoq.agents.policy_planning import SEARCH_EVERY, TEST_EPISODES, FeedbackPlanning
+from geoq.agents import policy_planning
+from geoq.agents.policy_planning import BRANCH, SEARCH_EVERY, TEST_EPISODES, FeedbackPlanning
 from geoq.models import GPDynamicsModel, PolicyGradientSettings
 
 LOW, HIGH = np.array([-1.0]), np.array([1.0])
@@ -276,3 +277,32 @@ def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
     planning.returns, planning.q_returns = [-0.5, -0.6], []
     planning.search(model, 200, rng)
     assert planning.acting and planning.returns == [-0.5, -0.6]
+
+
+@pytest.mark.parametrize(("horizon", "branch", "steps"), [(10, 10, 10), (200, 30, 200),
+                                                          (1000, 30, 400)])  # fmt: skip
+def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
+    monkeypatch, horizon, branch, steps
+) -> None:
+    """The branched search's roll-outs and Adam steps never exceed the search's horizon
+    (:data:`~geoq.agents.policy_planning.BRANCH`), and it climbs from the stored states
+    it is given."""
+    planning = FeedbackPlanning(2, LOW, HIGH, horizon=horizon, net=True, real_test=True)
+    c = planning.gradient_settings
+    assert (c.horizon, c.branch_horizon, c.steps) == (horizon, branch, steps)
+    assert c.particles == BRANCH.particles
+    seen: list[tuple[int, FloatArray]] = []
+
+    def spy(model, policy, params, starts, rng, settings, branch_from):  # type: ignore[no-untyped-def]
+        seen.append((settings.branch_horizon, branch_from))
+        return params, 0.0
+
+    monkeypatch.setattr(policy_planning, "search_policy", spy)
+    rng = np.random.default_rng(0)
+    S = rng.uniform(-1, 1, (50, 2))
+    model = GPDynamicsModel(2, 1).fit(S, rng.uniform(-1, 1, (50, 1)), -S[:, 0] ** 2, S,
+                                      np.zeros(50), rng)  # fmt: skip
+    planning.starts, planning.returns = np.zeros((1, 2)), [0.0] * TEST_EPISODES
+    states = np.arange(10.0).reshape(5, 2)
+    planning.search(model, 0, rng, states)
+    assert len(seen) == 1 and seen[0][0] == branch and seen[0][1] is states

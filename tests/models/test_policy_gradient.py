@@ -162,6 +162,38 @@ def test_the_search_through_a_learned_model_nears_the_lqr_return() -> None:
     assert np.isfinite(value)
 
 
+@pytest.mark.parametrize("branch", [20, 30])
+def test_a_search_branched_from_stored_states_nears_the_lqr_return(branch: int) -> None:
+    """Adam up the return of ``branch`` steps from states spread over the region (stored
+    states, not the starts): the found weights, judged over the whole horizon from the
+    starts, near the LQR return."""
+    rng = np.random.default_rng(4)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=8)
+    start = policy.initial(rng)
+    stored = rng.uniform(-1.5, 1.5, size=(500, 2))
+    search = PolicyGradientSettings(horizon=50, particles=16, steps=300, learning_rate=0.1,
+                                    branch_horizon=branch)  # fmt: skip
+    params, value = search_policy(model, policy, start, STARTS, rng, search, branch_from=stored)
+    P, _ = _lqr()
+    optimum = -np.mean(np.einsum("pi,ij,pj->p", STARTS, P, STARTS))
+    assert not np.array_equal(params, start)
+    assert _true_return(policy, params, 100) >= 1.15 * optimum
+    assert np.isfinite(value)
+
+
+def test_a_branch_horizon_without_stored_states_is_the_plain_search() -> None:
+    rng = np.random.default_rng(5)
+    model = learned_model(rng, 20.0)
+    policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=4)
+    start = policy.initial(rng)
+    runs = [search_policy(model, policy, start, STARTS, np.random.default_rng(6),
+                          PolicyGradientSettings(horizon=20, particles=4, steps=5,
+                                                 branch_horizon=branch))
+            for branch in (0, 5)]  # fmt: skip
+    assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1] == runs[1][1]
+
+
 def test_the_current_weights_stay_unless_beaten_and_the_same_seed_searches_alike() -> None:
     rng = np.random.default_rng(5)
     model = learned_model(rng, 20.0)
@@ -232,6 +264,8 @@ def test_bad_settings_and_shapes_are_refused() -> None:
         PolicyGradientSettings(learning_rate=-1.0)
     with pytest.raises(ValueError, match="budget"):
         PolicyGradientSettings(budget=float("nan"))
+    with pytest.raises(ValueError, match="branch_horizon"):
+        PolicyGradientSettings(horizon=10, branch_horizon=11)
     with pytest.raises(ValueError, match="high > low"):
         MLPFeedback(np.array([1.0]), np.array([1.0]), np.zeros(2), np.ones(2))
     with pytest.raises(ValueError, match="hidden"):

@@ -123,7 +123,7 @@ class ModelPlanning:
         if n >= self.first_fit and self.feedback.due(n):
             if self.mode == "policy" or not self.model.fitted:
                 self._fit(buffer, rng)
-            self.feedback.search(self.model, n, rng)
+            self.feedback.search(self.model, n, rng, buffer.arrays(last=self.window)[0])
         self.feedback.open_episode(n)
 
     def action(

@@ -10,7 +10,9 @@ model's return over ``config.policy_horizon`` steps from the episodes' first sta
 (:func:`~geoq.models.search_gains`). ``policy-net``: the weights of a
 :class:`~geoq.models.MLPFeedback` are searched by gradients
 (:func:`~geoq.models.search_policy`) through a model of :data:`NET_MODEL`'s settings,
-fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule. Training
+fitted on :class:`~geoq.agents.model_planning.ModelPlanning`'s schedule: up the return of
+short roll-outs branched from the newest ``config.window`` stored states
+(:data:`BRANCH`), and judged on the whole horizon from the episodes' first states. Training
 actions are the policy's plus Gaussian noise of :data:`EXPLORATION` half-ranges
 (clipped to the box); greedy actions are the policy's, with no roll-out.
 
@@ -60,6 +62,7 @@ verdict would keep on them, not whichever the model's score happened to send bac
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -77,7 +80,8 @@ from geoq.models import (
 )
 from geoq.models.policy_search import HOLDOUT_SE
 
-__all__ = ["EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "TEST_EPISODES", "FeedbackPlanning"]
+__all__ = ["BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "TEST_EPISODES",
+           "FeedbackPlanning"]  # fmt: skip
 
 #: Least number of new transitions between two searches.
 SEARCH_EVERY = 100
@@ -85,6 +89,13 @@ SEARCH_EVERY = 100
 TEST_EPISODES = 2
 #: Std of the training actions' noise, in half-ranges of the action box.
 EXPLORATION = 0.1
+#: How a ``policy-net`` search climbs: Adam steps up the return of roll-outs of
+#: ``branch_horizon`` model steps from ``particles`` stored states drawn afresh each step
+#: (docs/design-notes.md, part fourteen). Each is capped by the search's horizon: one Adam
+#: step per step of it at most, so that a search's work grows with the horizon as the
+#: whole-horizon search's did, and the searches of a run (one every two episodes or
+#: more) cost about the same whatever the episodes' length.
+BRANCH = PolicyGradientSettings(branch_horizon=30, particles=64, steps=400)
 #: The model a ``policy-net`` search reads: the support in standardised states,
 #: calibrated by the newest fifth of the data (a new episode's states lie farther from
 #: the old ones than a trajectory's steps from each other), and the rare jumps at a
@@ -114,7 +125,9 @@ class FeedbackPlanning:
         self.episode_from, self.acting, self.overshoot = -1, False, 0.0
         self.q_lost_at = 0
         self.settings = PolicySearchSettings(horizon=horizon)
-        self.gradient_settings = PolicyGradientSettings(horizon=horizon)
+        steps, branch = min(BRANCH.steps, horizon), min(BRANCH.branch_horizon, horizon)
+        self.gradient_settings = replace(BRANCH, horizon=horizon, steps=steps,
+                                         branch_horizon=branch)  # fmt: skip
         self.starts = np.zeros((0, obs_dim))
         self.policy: LinearFeedback | MLPFeedback | None = None
         self.gains = np.zeros((low.shape[0], obs_dim + 1))
@@ -205,8 +218,10 @@ class FeedbackPlanning:
         kind = MLPFeedback if self.net else LinearFeedback
         return kind(self.low, self.high, center, scale)
 
-    def search(self, model: GPDynamicsModel, n: int, rng: np.random.Generator) -> None:
-        """Search the gains through ``model`` (fitted on ``n`` transitions), from the current."""
+    def search(self, model: GPDynamicsModel, n: int, rng: np.random.Generator,
+               states: FloatArray | None = None) -> None:  # fmt: skip
+        """Search the gains through ``model`` (fitted on ``n`` transitions), from the current;
+        ``states`` [N, d_s]: the stored states a ``policy-net`` search branches from."""
         if self.policy is None:  # the standardisation is fixed at the first search
             d = model.obs_dim
             self.policy = self._make(model.x_mean[:d], model.x_scale[:d])
@@ -219,7 +234,7 @@ class FeedbackPlanning:
         before = (self.gains, self.value, self.returns, self.acting)
         if isinstance(self.policy, MLPFeedback):
             self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
-                                                   rng, self.gradient_settings)  # fmt: skip
+                                                   rng, self.gradient_settings, states)  # fmt: skip
         else:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip

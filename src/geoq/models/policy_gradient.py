@@ -26,6 +26,17 @@ output above 1/2), by :data:`~geoq.models.policy_search.HOLDOUT_SE` standard err
 the paired differences. The steps stop where the gradient (or its square) overflows:
 through long roll-outs of a model whose steps stretch the states, the return can be
 chaotic in the weights, its gradient astronomically large and no guide.
+
+Where it is, even a finite gradient can be: on a cart-pole swing-up, whose pole the
+searched policy spun through the top, the smooth return over the episode fell after
+one Adam step at every step size tried (docs/design-notes.md, part thirteen). With
+``branch_horizon`` the Adam steps climb the return of short roll-outs branched from
+stored states instead (``branch_from``; MBPO's branched roll-outs, Janner et al. 2019;
+the receding horizon a model-predictive controller plans over, learned once into the
+policy), fresh states at every step: a short horizon keeps the gradient a guide, and
+states from everywhere the task has been teach the policy what to do there (near the
+top: hold the pole up) where the episode's first states teach only how to start. The
+found weights are still judged on the whole horizon from the episodes' starts.
 """
 
 from __future__ import annotations
@@ -60,6 +71,12 @@ class PolicyGradientSettings:
     (False: follow their means; the particles differ by their starts)."""
     holdout_particles: int = 64
     """Roll-outs from fresh starts that the found weights must win on."""
+    branch_horizon: int = 0
+    """Model steps of the roll-outs the Adam steps climb when they branch from stored
+    states (``branch_from`` given to :func:`search_policy`): ``particles`` states drawn
+    afresh at each step, the iterate after the last step found (0: the roll-outs run the
+    whole ``horizon`` from the episodes' starts, and the best iterate is found). The
+    found weights are judged on the whole ``horizon`` from the starts either way."""
     budget: float = 4e10
     """Work the Adam steps may ask of the model per search, in
     :attr:`~geoq.models.GPDynamicsModel.step_cost` units summed over the particles' steps
@@ -71,6 +88,7 @@ class PolicyGradientSettings:
         check_int(self.particles, "particles", minimum=1, maximum=100_000)
         check_int(self.holdout_particles, "holdout_particles", minimum=2, maximum=100_000)
         check_int(self.steps, "steps", minimum=0, maximum=100_000)
+        check_int(self.branch_horizon, "branch_horizon", minimum=0, maximum=self.horizon)
         check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
         check_real(self.budget, "budget", low=0.0)
 
@@ -206,6 +224,7 @@ def search_policy(
     starts: FloatArray,
     rng: np.random.Generator,
     settings: PolicyGradientSettings | None = None,
+    branch_from: FloatArray | None = None,
 ) -> tuple[FloatArray, float]:
     """Weights ``[n_params]`` found by Adam up :func:`soft_return` from ``params``, on
     ``particles`` starts drawn from ``starts`` [N, d_s] and normals drawn once, and their
@@ -217,19 +236,25 @@ def search_policy(
     c = settings or PolicyGradientSettings()
     params = as_float_vector(params, "params", policy.n_params)
     starts = as_float_matrix(starts, "starts", model.obs_dim)
+    branch = None
+    if c.branch_horizon > 0 and branch_from is not None:
+        branch = as_float_matrix(branch_from, "branch_from", model.obs_dim)
+    horizon = c.horizon if branch is None else c.branch_horizon
     picked = starts[rng.integers(len(starts), size=c.particles)]
-    normals = rng.standard_normal((c.horizon, c.particles, model.obs_dim)) * c.sampled
+    normals = rng.standard_normal((horizon, c.particles, model.obs_dim)) * c.sampled
     theta, m, v = params.copy(), np.zeros_like(params), np.zeros_like(params)
     best, best_value = params, -np.inf
     beta1, beta2 = 0.9, 0.999
     unit, spent = model.step_cost, 0.0
     for k in range(1, c.steps + 1):
+        if branch is not None:
+            picked = branch[rng.integers(len(branch), size=c.particles)]
         value, grad, taken = _soft_return(model, policy, theta, picked, normals)
         with np.errstate(over="ignore"):  # a return chaotic in the weights: stop there
             square = grad * grad
         if not (np.isfinite(value) and np.all(np.isfinite(square))):
             break
-        if value > best_value:
+        if value > best_value and branch is None:
             best, best_value = theta.copy(), value
         spent += taken * unit
         if spent >= c.budget:  # a step after this one would not be scored
@@ -238,6 +263,8 @@ def search_policy(
         v = beta2 * v + (1 - beta2) * square
         step = (m / (1 - beta1**k)) / (np.sqrt(v / (1 - beta2**k)) + 1e-8)
         theta = theta + c.learning_rate * step
+        if branch is not None:
+            best = theta
     picked = starts[rng.integers(len(starts), size=c.holdout_particles)]
     fresh = rng.standard_normal((c.horizon, *picked.shape)) if c.sampled else None
 

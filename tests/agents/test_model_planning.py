@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -131,6 +133,15 @@ def _policy_agent(seed: int = 0, planner: str = "policy") -> GPQAgent:
     return GPQAgent(PointToGoal(), seed=seed, **(POLICY | {"planner": planner}))
 
 
+def _enough_steps(agent: GPQAgent) -> GPQAgent:
+    """``policy-net``'s searches given 200 Adam steps: its default of one per horizon step
+    (40 here) finds no weights that reach the point's goal by 239 steps, so ``Q`` keeps
+    acting (docs/design-notes.md, part fourteen); these tests are of the loop around it."""
+    feedback = agent.planning.feedback
+    feedback.gradient_settings = replace(feedback.gradient_settings, steps=200)
+    return agent
+
+
 @POLICY_PLANNERS
 def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner: str) -> None:
     agent = _policy_agent(planner=planner)
@@ -139,7 +150,7 @@ def test_a_policy_is_searched_at_episode_starts_once_the_warm_up_is_over(planner
     assert GPQAgent("Pendulum-v1", planner="policy", policy_horizon=7).config.policy_horizon == 7
     agent.learn(39)
     assert not agent.planning.active and not agent.planning.model.fitted
-    agent = _policy_agent(planner=planner).learn(239)
+    agent = _enough_steps(_policy_agent(planner=planner)).learn(239)
     feedback = agent.planning.feedback
     starts = len(agent.episodes) + 1  # the unfinished episode's start too
     assert agent.planning.active and len(feedback.starts) == starts
@@ -181,7 +192,8 @@ class PointToCentre(PointToGoal):
 
 @POLICY_PLANNERS
 def test_the_policy_learns_to_regulate_the_point(planner: str) -> None:
-    agent = GPQAgent(PointToCentre(), seed=1, **(POLICY | {"planner": planner})).learn(300)
+    agent = _enough_steps(GPQAgent(PointToCentre(), seed=1, **(POLICY | {"planner": planner})))
+    agent.learn(300)
     for start in (-1.0, -0.5, 0.6, 1.0):
         env = PointToCentre()
         obs, _ = env.reset(seed=0, options={"state": [start]})

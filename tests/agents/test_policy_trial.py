@@ -279,7 +279,7 @@ def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
     assert planning.acting and planning.returns == [-0.5, -0.6]
 
 
-@pytest.mark.parametrize(("horizon", "branch", "steps"), [(10, 10, 200), (200, 30, 200),
+@pytest.mark.parametrize(("horizon", "branch", "steps"), [(10, 10, 10), (200, 30, 200),
                                                           (1000, 30, 400)])  # fmt: skip
 def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
     monkeypatch, horizon, branch, steps

@@ -80,8 +80,8 @@ from geoq.models import (
 )
 from geoq.models.policy_search import HOLDOUT_SE
 
-__all__ = ["BRANCH", "EXPLORATION", "LEAST_STEPS", "NET_MODEL", "SEARCH_EVERY",
-           "TEST_EPISODES", "FeedbackPlanning"]  # fmt: skip
+__all__ = ["BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "TEST_EPISODES",
+           "FeedbackPlanning"]  # fmt: skip
 
 #: Least number of new transitions between two searches.
 SEARCH_EVERY = 100
@@ -91,14 +91,11 @@ TEST_EPISODES = 2
 EXPLORATION = 0.1
 #: How a ``policy-net`` search climbs: Adam steps up the return of roll-outs of
 #: ``branch_horizon`` model steps from ``particles`` stored states drawn afresh each step
-#: (docs/design-notes.md, part fourteen). The roll-outs are capped by the search's
-#: horizon, and the Adam steps are one per step of it, within :data:`LEAST_STEPS` and
-#: ``steps``: a search's work grows with the horizon as the whole-horizon search's did,
-#: so that the searches of a run (one every two episodes or more) cost about the same
-#: whatever the episodes' length, and a short horizon still gets the steps it had.
+#: (docs/design-notes.md, part fourteen). Both are capped by the search's horizon: the
+#: roll-outs' length, and the Adam steps, one per step of it at most, so that a search's
+#: work grows with the horizon as the whole-horizon search's did and the searches of a
+#: run (one every two episodes or more) cost about the same whatever the episodes' length.
 BRANCH = PolicyGradientSettings(branch_horizon=30, particles=64, steps=400)
-#: The fewest Adam steps of a branched search.
-LEAST_STEPS = 200
 #: The model a ``policy-net`` search reads: the support in standardised states,
 #: calibrated by the newest fifth of the data (a new episode's states lie farther from
 #: the old ones than a trajectory's steps from each other), and the rare jumps at a
@@ -128,8 +125,7 @@ class FeedbackPlanning:
         self.episode_from, self.acting, self.overshoot = -1, False, 0.0
         self.q_lost_at = 0
         self.settings = PolicySearchSettings(horizon=horizon)
-        steps = min(max(horizon, LEAST_STEPS), BRANCH.steps)
-        branch = min(BRANCH.branch_horizon, horizon)
+        steps, branch = min(BRANCH.steps, horizon), min(BRANCH.branch_horizon, horizon)
         self.gradient_settings = replace(BRANCH, horizon=horizon, steps=steps,
                                          branch_horizon=branch)  # fmt: skip
         self.starts = np.zeros((0, obs_dim))

@@ -276,6 +276,13 @@ def test_bad_settings_and_shapes_are_refused() -> None:
     with pytest.raises(ValueError, match="params"):
         search_policy(learned_model(np.random.default_rng(0), 1.0), policy, np.zeros(3), STARTS,
                       np.random.default_rng(0))  # fmt: skip
+    branched = PolicyGradientSettings(horizon=10, branch_horizon=5, steps=1)
+    for bad, match in ((np.zeros((0, 2)), "at least one"), (np.zeros((3, 3)), "branch_from"),
+                       (np.full((3, 2), np.nan), "branch_from")):  # fmt: skip
+        with pytest.raises(ValueError, match=match):
+            search_policy(learned_model(np.random.default_rng(0), 1.0), policy,
+                          policy.initial(np.random.default_rng(0)), STARTS,
+                          np.random.default_rng(0), branched, branch_from=bad)  # fmt: skip
 
 
 def test_the_support_holdout_spacing_is_the_newest_states_distance_to_the_rest() -> None:

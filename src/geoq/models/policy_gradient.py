@@ -232,13 +232,17 @@ def search_policy(
     beat them there by :data:`~geoq.models.policy_search.HOLDOUT_SE` paired standard
     errors (module docstring). The Adam steps stop after ``steps``, or once they have
     asked the model for ``budget`` units of work (the particles' model steps times
-    :attr:`~geoq.models.GPDynamicsModel.step_cost`)."""
+    :attr:`~geoq.models.GPDynamicsModel.step_cost`). ``branch_from`` [M, d_s], with a
+    ``branch_horizon``: the stored states the Adam steps' roll-outs start from instead,
+    ``particles`` of them drawn at each step (module docstring)."""
     c = settings or PolicyGradientSettings()
     params = as_float_vector(params, "params", policy.n_params)
     starts = as_float_matrix(starts, "starts", model.obs_dim)
     branch = None
     if c.branch_horizon > 0 and branch_from is not None:
         branch = as_float_matrix(branch_from, "branch_from", model.obs_dim)
+        if len(branch) == 0:
+            raise ValueError("branch_from must hold at least one state")
     horizon = c.horizon if branch is None else c.branch_horizon
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((horizon, c.particles, model.obs_dim)) * c.sampled

@@ -169,14 +169,16 @@ def run_mpc(agent: Any, episodes: int, horizon: int, true_dynamics: bool) -> Non
 
 
 def run_branch(agent: Any, rounds: int, fresh: bool) -> None:
-    from geoq.models import PolicyGradientSettings, search_policy
+    from dataclasses import replace
+
+    from geoq.agents.policy_planning import BRANCH
+    from geoq.models import search_policy
 
     fb, model = agent.planning.feedback, agent.planning.model
     states = agent.buffer.arrays()[0]
     rng = np.random.default_rng(0)
     w = fb.policy.initial(rng) if fresh else fb.gains
-    settings = PolicyGradientSettings(horizon=fb.horizon, particles=64, steps=400,
-                                      branch_horizon=30, budget=1e14)  # fmt: skip
+    settings = replace(BRANCH, horizon=fb.horizon, budget=1e14)  # the agent's, 400 Adam steps
     print(f"start: greedy {greedy_return(agent, w):.1f}", flush=True)
     for k in range(rounds):
         start = time.perf_counter()

@@ -36,12 +36,15 @@ the receding horizon a model-predictive controller plans over, learned once into
 policy), fresh states at every step: a short horizon keeps the gradient a guide, and
 states from everywhere the task has been teach the policy what to do there (near the
 top: hold the pole up) where the episode's first states teach only how to start. The
-found weights are still judged on the whole horizon from the episodes' starts.
+found weights are still judged on the whole horizon from the episodes' starts. With
+``whole_steps`` a second climb runs beside it, up the whole horizon's return from the
+starts, and the holdout keeps the better of the two found weights (the agent's search
+does not: tried and measured in docs/design-notes.md, part fifteen).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -77,8 +80,16 @@ class PolicyGradientSettings:
     afresh at each step, the iterate after the last step found (0: the roll-outs run the
     whole ``horizon`` from the episodes' starts, and the best iterate is found). The
     found weights are judged on the whole ``horizon`` from the starts either way."""
+    whole_steps: int = 0
+    """With ``branch_from``: Adam steps of a second climb beside the branched one, up the
+    return of ``whole_particles`` roll-outs over the whole ``horizon`` from the starts (its
+    best iterate found, as with no branch). The holdout then keeps whichever of the two
+    found weights returns more on its fresh starts, if that one beats the current weights
+    (0: the branched climb alone)."""
+    whole_particles: int = 16
+    """Roll-outs the second climb's return is averaged over."""
     budget: float = 4e10
-    """Work the Adam steps may ask of the model per search, in
+    """Work the Adam steps of each climb may ask of the model per search, in
     :attr:`~geoq.models.GPDynamicsModel.step_cost` units summed over the particles' steps
     (ended roll-outs cost nothing); the steps stop once it is spent. About a minute of one
     core at 1.5 ns a unit (docs/design-notes.md, part twelve)."""
@@ -88,6 +99,8 @@ class PolicyGradientSettings:
         check_int(self.particles, "particles", minimum=1, maximum=100_000)
         check_int(self.holdout_particles, "holdout_particles", minimum=2, maximum=100_000)
         check_int(self.steps, "steps", minimum=0, maximum=100_000)
+        check_int(self.whole_steps, "whole_steps", minimum=0, maximum=100_000)
+        check_int(self.whole_particles, "whole_particles", minimum=1, maximum=100_000)
         check_int(self.branch_horizon, "branch_horizon", minimum=0, maximum=self.horizon)
         check_real(self.learning_rate, "learning_rate", low=0.0, high=10.0)
         check_real(self.budget, "budget", low=0.0)
@@ -234,7 +247,9 @@ def search_policy(
     asked the model for ``budget`` units of work (the particles' model steps times
     :attr:`~geoq.models.GPDynamicsModel.step_cost`). ``branch_from`` [M, d_s], with a
     ``branch_horizon``: the stored states the Adam steps' roll-outs start from instead,
-    ``particles`` of them drawn at each step (module docstring)."""
+    ``particles`` of them drawn at each step (module docstring); with ``whole_steps`` too,
+    a second climb over the whole horizon from the starts, and the holdout's better of the
+    two found weights is the one set against ``params``."""
     c = settings or PolicyGradientSettings()
     params = as_float_vector(params, "params", policy.n_params)
     starts = as_float_matrix(starts, "starts", model.obs_dim)
@@ -243,6 +258,40 @@ def search_policy(
         branch = as_float_matrix(branch_from, "branch_from", model.obs_dim)
         if len(branch) == 0:
             raise ValueError("branch_from must hold at least one state")
+    found = [_climb(model, policy, params, starts, rng, c, branch)]
+    if branch is not None and c.whole_steps > 0:
+        whole = replace(c, steps=c.whole_steps, particles=c.whole_particles)
+        found.append(_climb(model, policy, params, starts, rng, whole, None))
+    picked = starts[rng.integers(len(starts), size=c.holdout_particles)]
+    fresh = rng.standard_normal((c.horizon, *picked.shape)) if c.sampled else None
+
+    def returns(weights: FloatArray) -> FloatArray:
+        return rollout_returns(model, picked, lambda t, S, rows: policy.act(weights, S),
+                               c.horizon, gamma=1.0, noise=fresh)  # fmt: skip
+
+    old = returns(params)
+    new = [returns(weights) for weights in found]
+    best = int(np.argmax([r.mean() for r in new]))
+    gain = new[best] - old
+    se = gain.std(ddof=1) / np.sqrt(len(gain))
+    if gain.mean() > HOLDOUT_SE * se:
+        return found[best], float(new[best].mean())
+    return params, float(old.mean())
+
+
+def _climb(
+    model: GPDynamicsModel,
+    policy: MLPFeedback,
+    params: FloatArray,
+    starts: FloatArray,
+    rng: np.random.Generator,
+    c: PolicyGradientSettings,
+    branch: FloatArray | None,
+) -> FloatArray:
+    """The weights one climb of :func:`search_policy` finds from ``params``: ``c.steps``
+    Adam steps up :func:`soft_return` over the whole ``c.horizon`` from ``starts`` (the best
+    iterate), or, ``branch`` [M, d_s] given, over ``c.branch_horizon`` from its states (the
+    last iterate)."""
     horizon = c.horizon if branch is None else c.branch_horizon
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((horizon, c.particles, model.obs_dim)) * c.sampled
@@ -269,16 +318,4 @@ def search_policy(
         theta = theta + c.learning_rate * step
         if branch is not None:
             best = theta
-    picked = starts[rng.integers(len(starts), size=c.holdout_particles)]
-    fresh = rng.standard_normal((c.horizon, *picked.shape)) if c.sampled else None
-
-    def returns(weights: FloatArray) -> FloatArray:
-        return rollout_returns(model, picked, lambda t, S, rows: policy.act(weights, S),
-                               c.horizon, gamma=1.0, noise=fresh)  # fmt: skip
-
-    old, new = returns(params), returns(best)
-    gain = new - old
-    se = gain.std(ddof=1) / np.sqrt(len(gain))
-    if gain.mean() > HOLDOUT_SE * se:
-        return best, float(new.mean())
-    return params, float(old.mean())
+    return best

@@ -11,7 +11,13 @@ import pytest
 
 from geoq._typing import FloatArray
 from geoq.agents import policy_planning
-from geoq.agents.policy_planning import BRANCH, SEARCH_EVERY, TEST_EPISODES, FeedbackPlanning
+from geoq.agents.policy_planning import (
+    BRANCH,
+    SEARCH_EVERY,
+    SEARCH_WORK,
+    TEST_EPISODES,
+    FeedbackPlanning,
+)
 from geoq.models import GPDynamicsModel, PolicyGradientSettings
 
 LOW, HIGH = np.array([-1.0]), np.array([1.0])
@@ -114,14 +120,14 @@ def test_a_first_policy_worse_than_q_gives_way_to_q(kept: bool) -> None:
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
     q_returns = [-2.0, -2.5]
     planning.returns = list(q_returns)
-    planning.search(model, 0, rng)
+    planning.search(model, SEARCH_EVERY, rng)
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
     assert planning.q_returns == q_returns  # what the model's next returns are set against
     first, tried = planning.kept[0], planning.gains.copy()
     assert -2.25 < planning.value < -1.2  # the returns below keep the model's promise
     planning.returns = [-1.2, -1.4] if kept else [-9.0, -8.0]
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=0)
-    planning.search(model, SEARCH_EVERY, rng)  # judged, then searched with no Adam step
+    planning.search(model, 2 * SEARCH_EVERY, rng)  # judged, then searched with no Adam step
     assert planning.kept is None and planning.acting is kept
     assert (planning.overshoot == 0.0) is kept  # -9 and -8 fell short of the promise
     np.testing.assert_array_equal(planning.gains, tried if kept else first)
@@ -306,3 +312,28 @@ def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
     states = np.arange(10.0).reshape(5, 2)
     planning.search(model, 0, rng, states)
     assert len(seen) == 1 and seen[0][0] == branch and seen[0][1] is states
+
+
+def test_a_net_searchs_work_is_paid_by_the_transitions_since_the_last(monkeypatch) -> None:
+    """A search may ask the model for :data:`~geoq.agents.policy_planning.SEARCH_WORK`
+    per transition stored since the last search, never more than the settings' budget:
+    searches that come often, or find nothing, cannot add up past it."""
+    planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
+    budgets: list[float] = []
+
+    def spy(model, policy, params, starts, rng, settings, branch_from):  # type: ignore[no-untyped-def]
+        budgets.append(settings.budget)
+        return params, 0.0
+
+    monkeypatch.setattr(policy_planning, "search_policy", spy)
+    rng = np.random.default_rng(0)
+    S = rng.uniform(-1, 1, (50, 2))
+    model = GPDynamicsModel(2, 1).fit(S, rng.uniform(-1, 1, (50, 1)), -S[:, 0] ** 2, S,
+                                      np.zeros(50), rng)  # fmt: skip
+    planning.starts = np.zeros((1, 2))
+    full = planning.gradient_settings.budget / SEARCH_WORK
+    for n in (200, 300, 300 + int(2 * full)):
+        planning.returns = [0.0] * TEST_EPISODES
+        planning.search(model, n, rng)
+    assert budgets == [200 * SEARCH_WORK, 100 * SEARCH_WORK, planning.gradient_settings.budget]
+    assert planning.gradient_settings.budget == BRANCH.budget  # the settings kept as they are

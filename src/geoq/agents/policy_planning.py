@@ -80,13 +80,20 @@ from geoq.models import (
 )
 from geoq.models.policy_search import HOLDOUT_SE
 
-__all__ = ["BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "TEST_EPISODES",
-           "FeedbackPlanning"]  # fmt: skip
+__all__ = ["BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "SEARCH_WORK",
+           "TEST_EPISODES", "FeedbackPlanning"]  # fmt: skip
 
 #: Least number of new transitions between two searches.
 SEARCH_EVERY = 100
 #: Episodes the current weights run before the next search, with ``real_test``.
 TEST_EPISODES = 2
+#: Work a ``policy-net`` search's Adam steps may ask of the model per transition stored
+#: since the last search (the first: since none), at most the settings' ``budget``, in
+#: :attr:`~geoq.models.GPDynamicsModel.step_cost` units: a run's searches together ask
+#: at most this much per transition, about 60 ms of one core at 1.5 ns a unit, so
+#: 5 minutes for 5,000 transitions, however often searches come and however often they
+#: find nothing better (docs/design-notes.md, part fifteen).
+SEARCH_WORK = 4e7
 #: Std of the training actions' noise, in half-ranges of the action box.
 EXPLORATION = 0.1
 #: How a ``policy-net`` search climbs: Adam steps up the return of roll-outs of
@@ -233,8 +240,10 @@ class FeedbackPlanning:
                 self.q_lost_at = n
         before = (self.gains, self.value, self.returns, self.acting)
         if isinstance(self.policy, MLPFeedback):
+            c = self.gradient_settings
+            c = replace(c, budget=min(c.budget, SEARCH_WORK * (n - self.searched_at)))
             self.gains, self.value = search_policy(model, self.policy, self.gains, self.starts,
-                                                   rng, self.gradient_settings, states)  # fmt: skip
+                                                   rng, c, states)  # fmt: skip
         else:
             self.gains, self.value = search_gains(model, self.policy, self.gains, self.starts,
                                                   rng, self.settings)  # fmt: skip

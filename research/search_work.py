@@ -1,0 +1,68 @@
+"""The model work of every ``policy-net`` search of ``GPQAgent(env, seed=seed)`` learning.
+
+Each search's work (the particles' model steps of every :func:`~geoq.models.soft_return`
+times the model's :attr:`~geoq.models.GPDynamicsModel.step_cost`), the transitions
+since the search before, their ratio, its wall time (the holdout included), the budget
+it was given and whether it moved the weights; then the run's totals. What
+``SEARCH_WORK`` bounds (issue 46, part fifteen)::
+
+    python research/search_work.py Reacher-v5 --seed 0 --steps 5000
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import geoq.agents.policy_planning as planning
+import geoq.models.policy_gradient as gradient
+from geoq.agents import GPQAgent
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("env", help="Gymnasium id (or module:id)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--steps", type=int, default=5000)
+    a = parser.parse_args()
+    work, rows = [0.0], []
+    soft_return, search_policy = gradient._soft_return, planning.search_policy
+
+    def counted(model, *args):  # type: ignore[no-untyped-def]
+        value, grad, taken = soft_return(model, *args)
+        work[0] += taken * model.step_cost
+        return value, grad, taken
+
+    def timed(model, policy, params, starts, rng, settings, branch_from=None):  # type: ignore[no-untyped-def]
+        work[0], start = 0.0, time.perf_counter()
+        found = search_policy(model, policy, params, starts, rng, settings, branch_from)
+        moved = not np.array_equal(found[0], params)
+        rows.append([work[0], time.perf_counter() - start, settings.budget, moved])
+        return found
+
+    search = planning.FeedbackPlanning.search
+
+    def logged(self, model, n, rng, states=None):  # type: ignore[no-untyped-def]
+        gap, before = n - self.searched_at, len(rows)
+        search(self, model, n, rng, states)
+        if len(rows) > before:
+            rows[-1] += [n, gap]
+
+    gradient._soft_return, planning.search_policy = counted, timed
+    planning.FeedbackPlanning.search = logged
+    agent, start = GPQAgent(a.env, seed=a.seed), time.perf_counter()
+    agent.learn(a.steps)
+    total = time.perf_counter() - start
+    for w, seconds, budget, moved, n, gap in rows:
+        print(f"{n:>6} transitions (+{gap:>5}): work {w:.2e}, {w / max(gap, 1):.1e} a "
+              f"transition, {seconds:6.1f} s, budget {budget:.1e}, moved {moved}")  # fmt: skip
+    works = [row[0] / max(row[5], 1) for row in rows]
+    print(f"{a.env} seed {a.seed}: {len(rows)} searches, work {sum(r[0] for r in rows):.2e}, "
+          f"at most {max(works, default=0.0):.1e} a transition, searches "
+          f"{sum(r[1] for r in rows):.0f} s of learning's {total:.0f} s")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

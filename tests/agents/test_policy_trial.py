@@ -314,7 +314,7 @@ def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
     assert len(seen) == 1 and seen[0][0] == branch and seen[0][1] is states
 
 
-def test_a_net_searchs_work_is_paid_by_the_transitions_since_the_last(monkeypatch) -> None:
+def test_a_net_search_is_paid_for_by_the_transitions_since_the_last(monkeypatch) -> None:
     """A search may ask the model for :data:`~geoq.agents.policy_planning.SEARCH_WORK`
     per transition stored since the last search, never more than the settings' budget:
     searches that come often, or find nothing, cannot add up past it."""

@@ -285,6 +285,26 @@ def test_a_policy_with_no_returns_of_q_on_record_acts_on() -> None:
     assert planning.acting and planning.returns == [-0.5, -0.6]
 
 
+def _spy_on_search(
+    monkeypatch: pytest.MonkeyPatch,
+) -> tuple[list[tuple[PolicyGradientSettings, FloatArray | None]], GPDynamicsModel,
+           np.random.Generator]:  # fmt: skip
+    """What each call of ``search_policy`` is handed (its settings and ``branch_from``; it
+    keeps the weights it is given), a small model to search and the generator."""
+    seen: list[tuple[PolicyGradientSettings, FloatArray | None]] = []
+
+    def spy(model, policy, params, starts, rng, settings, branch_from):
+        seen.append((settings, branch_from))
+        return params, 0.0
+
+    monkeypatch.setattr(policy_planning, "search_policy", spy)
+    rng = np.random.default_rng(0)
+    S = rng.uniform(-1, 1, (50, 2))
+    model = GPDynamicsModel(2, 1).fit(S, rng.uniform(-1, 1, (50, 1)), -S[:, 0] ** 2, S,
+                                      np.zeros(50), rng)  # fmt: skip
+    return seen, model, rng
+
+
 @pytest.mark.parametrize(("horizon", "branch", "steps"), [(10, 10, 10), (200, 30, 200),
                                                           (1000, 30, 400)])  # fmt: skip
 def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
@@ -297,21 +317,11 @@ def test_a_net_search_branches_short_roll_outs_capped_by_its_horizon(
     c = planning.gradient_settings
     assert (c.horizon, c.branch_horizon, c.steps) == (horizon, branch, steps)
     assert c.particles == BRANCH.particles
-    seen: list[tuple[int, FloatArray]] = []
-
-    def spy(model, policy, params, starts, rng, settings, branch_from):  # type: ignore[no-untyped-def]
-        seen.append((settings.branch_horizon, branch_from))
-        return params, 0.0
-
-    monkeypatch.setattr(policy_planning, "search_policy", spy)
-    rng = np.random.default_rng(0)
-    S = rng.uniform(-1, 1, (50, 2))
-    model = GPDynamicsModel(2, 1).fit(S, rng.uniform(-1, 1, (50, 1)), -S[:, 0] ** 2, S,
-                                      np.zeros(50), rng)  # fmt: skip
+    seen, model, rng = _spy_on_search(monkeypatch)
     planning.starts, planning.returns = np.zeros((1, 2)), [0.0] * TEST_EPISODES
     states = np.arange(10.0).reshape(5, 2)
     planning.search(model, 0, rng, states)
-    assert len(seen) == 1 and seen[0][0] == branch and seen[0][1] is states
+    assert len(seen) == 1 and seen[0][0].branch_horizon == branch and seen[0][1] is states
 
 
 def test_a_net_search_is_paid_for_by_the_transitions_since_the_last(monkeypatch) -> None:
@@ -319,21 +329,12 @@ def test_a_net_search_is_paid_for_by_the_transitions_since_the_last(monkeypatch)
     per transition stored since the last search, never more than the settings' budget:
     searches that come often, or find nothing, cannot add up past it."""
     planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
-    budgets: list[float] = []
-
-    def spy(model, policy, params, starts, rng, settings, branch_from):  # type: ignore[no-untyped-def]
-        budgets.append(settings.budget)
-        return params, 0.0
-
-    monkeypatch.setattr(policy_planning, "search_policy", spy)
-    rng = np.random.default_rng(0)
-    S = rng.uniform(-1, 1, (50, 2))
-    model = GPDynamicsModel(2, 1).fit(S, rng.uniform(-1, 1, (50, 1)), -S[:, 0] ** 2, S,
-                                      np.zeros(50), rng)  # fmt: skip
+    seen, model, rng = _spy_on_search(monkeypatch)
     planning.starts = np.zeros((1, 2))
     full = planning.gradient_settings.budget / SEARCH_WORK
     for n in (200, 300, 300 + int(2 * full)):
         planning.returns = [0.0] * TEST_EPISODES
         planning.search(model, n, rng)
+    budgets = [settings.budget for settings, _ in seen]
     assert budgets == [200 * SEARCH_WORK, 100 * SEARCH_WORK, planning.gradient_settings.budget]
     assert planning.gradient_settings.budget == BRANCH.budget  # the settings kept as they are

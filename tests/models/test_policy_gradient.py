@@ -130,6 +130,39 @@ def test_the_smooth_returns_gradient_is_its_finite_differences() -> None:
     assert taken == 6 + sum(running[:-1]) < 6 * 15
 
 
+def test_a_closed_smooth_return_is_its_brute_force_sum_and_its_gradient_its_differences() -> None:
+    """With ``tail`` steps more, a plain loop over the particles: each step's reward weighted
+    by the chance the roll-out runs, a halt paid the least reward for the steps left and the
+    tail's, and the weight left after the last step paid ``tail_reward`` for each tail step."""
+    rng = np.random.default_rng(2)
+    model = _ending_model(rng)
+    policy = MLPFeedback(np.array([-1.0]), np.array([1.0]), np.zeros(3), np.ones(3), hidden=5)
+    params = policy.initial(rng) + 0.5 * rng.normal(size=policy.n_params)
+    starts, normals, tail, tail_reward = rng.normal(size=(6, 3)), np.zeros((15, 6, 3)), 7, 0.8
+    value, grad = soft_return(model, policy, params, starts, normals, tail, tail_reward)
+    r_least, expected = model.reward_range[0], 0.0
+    for p in range(6):
+        s, w = starts[p : p + 1], 1.0
+        for t in range(15):
+            mean = model.predict_mean(s, policy.act(params, s))[0]
+            s = s + mean[:3]
+            end = min(max(mean[4], 0.0), 1.0)
+            halt = min(max(model.support.distance(s)[0] - 1.0, 0.0), 1.0)
+            expected += w * (mean[3] + (1 - end) * halt * (14 - t + tail) * r_least)
+            w *= (1 - end) * (1 - halt)
+        expected += w * tail * tail_reward
+    assert value == pytest.approx(expected / 6, rel=1e-9)
+    assert value != soft_return(model, policy, params, starts, normals)[0]
+    differences = _central(
+        lambda v: soft_return(model, policy, v, starts, normals, tail, tail_reward)[0],
+        params, 1e-4,
+    )  # fmt: skip
+    np.testing.assert_allclose(grad, differences, rtol=1e-4,
+                               atol=1e-4 * np.abs(differences).max())  # fmt: skip
+    with pytest.raises(ValueError, match="tail"):
+        soft_return(model, policy, params, starts, normals, -1)
+
+
 def test_with_no_end_and_no_halt_the_smooth_return_is_the_exact_one() -> None:
     rng = np.random.default_rng(3)
     model = learned_model(rng, 20.0)
@@ -218,6 +251,46 @@ def test_a_whole_horizon_climb_beside_a_myopic_branched_one_is_kept() -> None:
     assert got[300] >= 2.5 * optimum, (got, optimum)
 
 
+def _edge_task(S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A cart on a line paid 1 a step alive and half its push to the right more, whose
+    episode ends past ``s = 1``: next states, rewards and ends of ``[N, 1]`` and ``[N, 1]``."""
+    S2 = S + 0.1 * A
+    return S2, 1.0 + 0.5 * A[:, 0], (S2[:, 0] > 1.0).astype(float)
+
+
+def test_a_closed_branch_climbs_away_from_the_end_a_short_branch_cannot_see() -> None:
+    """Two-step branches see the push's pay and barely the end's cost (two steps' worth); the
+    judge's 50 steps see the end's whole cost. Closed by the data's mean reward for the 48
+    steps left, the branched climb learns to stop short of the edge; unclosed, it keeps
+    pushing over it."""
+    rng = np.random.default_rng(7)
+    S, A = rng.uniform(-1.5, 1.2, size=(300, 1)), rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2, R, ends = _edge_task(S, A)
+    model = GPDynamicsModel(1, 1, ModelSettings(max_bv=100)).fit(S, A, R, S2, ends, rng)
+    policy = MLPFeedback(np.array([-1.0]), np.array([1.0]), np.zeros(1), np.ones(1), hidden=8)
+    start = policy.initial(rng)
+    start[-1] = 2.0  # the output's bias: push right nearly flat out everywhere
+    starts = rng.uniform(-0.5, 0.5, size=(32, 1))
+
+    def true_return(params: np.ndarray) -> float:
+        s, alive, total = starts.copy(), np.ones(len(starts)), 0.0
+        for _ in range(50):
+            s, r, end = _edge_task(s, policy.act(params, s))
+            total += float(np.sum(alive * r))
+            alive *= 1.0 - end
+        return total / len(starts)
+
+    got = {}
+    for closed in (False, True):
+        search = PolicyGradientSettings(horizon=50, particles=32, steps=200, learning_rate=0.05,
+                                        branch_horizon=2, close_branch=closed)  # fmt: skip
+        params, _ = search_policy(model, policy, start, starts, np.random.default_rng(8), search,
+                                  branch_from=S)  # fmt: skip
+        got[closed] = true_return(params)
+    assert true_return(start) < 20.0  # over the edge within about ten steps
+    assert got[False] < 25.0 and got[True] > 45.0, got
+
+
 @pytest.mark.parametrize("order", [(0, 1), (1, 0)])
 def test_the_holdout_keeps_the_better_of_the_two_climbs(monkeypatch, order) -> None:
     """Whichever climb runs first, the weights the exact returns favour are returned."""
@@ -259,7 +332,7 @@ def test_the_search_stops_where_the_gradients_square_overflows(monkeypatch) -> N
     start = policy.initial(rng)
     seen: list[np.ndarray] = []
 
-    def huge_later(model, policy, theta, picked, normals):  # type: ignore[no-untyped-def]
+    def huge_later(model, policy, theta, *rest):  # type: ignore[no-untyped-def]
         seen.append(theta.copy())
         grad = np.full(policy.n_params, 1.0 if len(seen) < 3 else 1e200)
         return float(len(seen)), grad, 1
@@ -288,7 +361,7 @@ def test_the_adam_steps_stop_once_the_budget_is_spent(monkeypatch, units, evalua
     policy = MLPFeedback(np.array([-20.0]), np.array([20.0]), np.zeros(2), np.ones(2), hidden=4)
     seen: list[np.ndarray] = []
 
-    def counted(model, policy, theta, picked, normals):  # type: ignore[no-untyped-def]
+    def counted(model, policy, theta, *rest):  # type: ignore[no-untyped-def]
         seen.append(theta.copy())
         return -float(len(seen)), np.ones(policy.n_params), 5
 

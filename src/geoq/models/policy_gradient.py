@@ -40,6 +40,15 @@ found weights are still judged on the whole horizon from the episodes' starts. W
 ``whole_steps`` a second climb runs beside it, up the whole horizon's return from the
 starts, and the holdout keeps the better of the two found weights (the agent's search
 does not: tried and measured in docs/design-notes.md, part fifteen).
+
+A branched roll-out's return counts only its ``branch_horizon`` steps, where the judge's
+roll-outs run on: on a task that pays for being alive, ending costs a short branch a few
+steps' pay and the judge the rest of the horizon's. With ``close_branch`` the branched
+roll-outs are closed as the judge's would go on, for ``horizon - branch_horizon`` steps
+more: the data's mean reward for each where a roll-out still runs, nothing where it ended,
+and the least reward for each where it halted. This is model-based value expansion's
+closing value (MVE, Feinberg et al. 2018) at its crudest, one constant per step: it tells
+a roll-out alive from one ended or lost, and nothing more.
 """
 
 from __future__ import annotations
@@ -88,6 +97,12 @@ class PolicyGradientSettings:
     (0: the branched climb alone)."""
     whole_particles: int = 16
     """Roll-outs the second climb's return is averaged over."""
+    close_branch: bool = False
+    """With ``branch_from``: close each branched roll-out with a value for the rest of the
+    whole ``horizon``, ``horizon - branch_horizon`` steps more, as the judge's roll-outs
+    run them: the data's mean reward for each of those steps where the roll-out still runs
+    (none where it ended), and a halt paid the least reward for them too (module
+    docstring). False: a branched roll-out is worth its ``branch_horizon`` steps alone."""
     budget: float = 4e10
     """Work the Adam steps of each climb may ask of the model per search, in
     :attr:`~geoq.models.GPDynamicsModel.step_cost` units summed over the particles' steps
@@ -170,11 +185,17 @@ def soft_return(
     params: FloatArray,
     starts: FloatArray,
     normals: FloatArray,
+    tail: int = 0,
+    tail_reward: float = 0.0,
 ) -> tuple[float, FloatArray]:
     """The mean smooth return (module docstring) of ``P`` roll-outs from ``starts`` [P, d_s]
     under the weights ``params`` over ``T`` model steps with the state changes' standard
-    normals ``normals`` [T, P, d_s], and its gradient ``[n_params]``."""
-    value, grad, _ = _soft_return(model, policy, params, starts, normals)
+    normals ``normals`` [T, P, d_s], and its gradient ``[n_params]``. ``tail`` steps more
+    close the roll-outs: a roll-out's weight after the ``T`` steps times ``tail_reward``
+    for each, and a halt paid the least reward for them too (0: no closing value)."""
+    tail = check_int(tail, "tail", minimum=0)
+    tail_reward = check_real(tail_reward, "tail_reward")
+    value, grad, _ = _soft_return(model, policy, params, starts, normals, tail, tail_reward)
     return value, grad
 
 
@@ -184,6 +205,8 @@ def _soft_return(
     params: FloatArray,
     starts: FloatArray,
     normals: FloatArray,
+    tail: int = 0,
+    tail_reward: float = 0.0,
 ) -> tuple[float, FloatArray, int]:
     """:func:`soft_return`, and the particles' model steps it took."""
     T, (P, d) = normals.shape[0], starts.shape
@@ -205,14 +228,16 @@ def _soft_return(
         end = np.clip(mean[:, d + 1], 0.0, 1.0)
         dist, dist_grad = model.support.distance_gradient(s)
         halt = np.clip(dist - 1.0, 0.0, 1.0)
-        rest = (T - 1 - t) * r_least
+        rest = (T - 1 - t + tail) * r_least
         reward = mean[:, d] + (1.0 - end) * halt * rest
         total[rows] += w_t * reward
         live = ((mean[:, d + 1] > 0) & (mean[:, d + 1] < 1), (dist > 1) & (dist < 2))
         tape.append((rows, cache, jac, w_t, reward, end, halt, rest, dist_grad, *live))
         w[rows] = w_t * (1.0 - end) * (1.0 - halt)
+    if tail:  # the closing value of the roll-outs still running
+        total += w * (tail * tail_reward)
     grad = np.zeros(policy.n_params)
-    g_next, gw_next = np.zeros((P, d)), np.zeros(P)
+    g_next, gw_next = np.zeros((P, d)), np.full(P, tail * tail_reward)
     for rows, cache, jac, w, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(
         tape
     ):
@@ -291,8 +316,11 @@ def _climb(
     """The weights one climb of :func:`search_policy` finds from ``params``: ``c.steps``
     Adam steps up :func:`soft_return` over the whole ``c.horizon`` from ``starts`` (the best
     iterate), or, ``branch`` [M, d_s] given, over ``c.branch_horizon`` from its states (the
-    last iterate)."""
+    last iterate), closed by the data's mean reward with ``c.close_branch``."""
     horizon = c.horizon if branch is None else c.branch_horizon
+    closed = branch is not None and c.close_branch
+    tail = c.horizon - c.branch_horizon if closed else 0
+    tail_reward = float(model.y_mean[model.obs_dim]) if closed else 0.0
     picked = starts[rng.integers(len(starts), size=c.particles)]
     normals = rng.standard_normal((horizon, c.particles, model.obs_dim)) * c.sampled
     theta, m, v = params.copy(), np.zeros_like(params), np.zeros_like(params)
@@ -302,7 +330,8 @@ def _climb(
     for k in range(1, c.steps + 1):
         if branch is not None:
             picked = branch[rng.integers(len(branch), size=c.particles)]
-        value, grad, taken = _soft_return(model, policy, theta, picked, normals)
+        value, grad, taken = _soft_return(model, policy, theta, picked, normals, tail,
+                                          tail_reward)  # fmt: skip
         with np.errstate(over="ignore"):  # a return chaotic in the weights: stop there
             square = grad * grad
         if not (np.isfinite(value) and np.all(np.isfinite(square))):

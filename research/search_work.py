@@ -3,10 +3,17 @@
 Each search's work (the particles' model steps of every :func:`~geoq.models.soft_return`
 times the model's :attr:`~geoq.models.GPDynamicsModel.step_cost`), the transitions
 since the search before, their ratio, its wall time (the holdout included), the budget
-it was given and whether it moved the weights; then the run's totals. What
-``SEARCH_WORK`` bounds (issue 46, part fifteen)::
+it was given and whether it moved the weights, and the gate after it: the model's score
+for the weights that stand, the overshoot, the mean of ``Q``'s returns the gate sets it
+against (read before the search, so before a trial's verdict there) and whether a policy
+acts; then the run's totals. What ``SEARCH_WORK`` bounds (issue 46,
+part fifteen), and why no policy acts on ``Walker2d-v5`` (part sixteen)::
 
     python research/search_work.py Reacher-v5 --seed 0 --steps 5000
+    python research/search_work.py Walker2d-v5 --seed 0 --steps 3000 --chunk 500
+
+``--chunk``: ``learn`` that many steps at a time, as the benchmark's evaluations do
+(each call starts a new episode, so the searches fall where they fall there).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ def main() -> None:
     parser.add_argument("env", help="Gymnasium id (or module:id)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=5000)
+    parser.add_argument("--chunk", type=int, default=0, help="learn this many at a time")
     a = parser.parse_args()
     work, rows = [0.0], []
     soft_return, search_policy = gradient._soft_return, planning.search_policy
@@ -46,18 +54,24 @@ def main() -> None:
 
     def logged(self, model, n, rng, states=None):  # type: ignore[no-untyped-def]
         gap, before = n - self.searched_at, len(rows)
+        q_returns = self.q_returns if self.acting else self.returns
         search(self, model, n, rng, states)
         if len(rows) > before:
-            rows[-1] += [n, gap]
+            q_mean = float(np.mean(q_returns)) if q_returns else float("nan")
+            rows[-1] += [n, gap, self.value, self.overshoot, q_mean, self.acting]
 
     gradient._soft_return, planning.search_policy = counted, timed
     planning.FeedbackPlanning.search = logged
     agent, start = GPQAgent(a.env, seed=a.seed), time.perf_counter()
-    agent.learn(a.steps)
+    chunk = a.chunk or a.steps
+    for done in range(0, a.steps, chunk):
+        agent.learn(min(chunk, a.steps - done))
     total = time.perf_counter() - start
-    for w, seconds, budget, moved, n, gap in rows:
+    for w, seconds, budget, moved, n, gap, value, overshoot, q_mean, acting in rows:
         print(f"{n:>6} transitions (+{gap:>5}): work {w:.2e}, {w / max(gap, 1):.1e} a "
-              f"transition, {seconds:6.1f} s, budget {budget:.1e}, moved {moved}")  # fmt: skip
+              f"transition, {seconds:6.1f} s, budget {budget:.1e}, moved {moved}; model "
+              f"score {value:.1f}, overshoot {overshoot:.1f}, Q's mean {q_mean:.1f}, "
+              f"policy acts {acting}")  # fmt: skip
     works = [row[0] / max(row[5], 1) for row in rows]
     print(f"{a.env} seed {a.seed}: {len(rows)} searches, work {sum(r[0] for r in rows):.2e}, "
           f"at most {max(works, default=0.0):.1e} a transition, searches "

@@ -253,7 +253,8 @@ def test_a_whole_horizon_climb_beside_a_myopic_branched_one_is_kept() -> None:
 
 def _edge_task(S: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A cart on a line paid 1 a step alive and half its push to the right more, whose
-    episode ends past ``s = 1``: next states, rewards and ends of ``[N, 1]`` and ``[N, 1]``."""
+    episode ends past ``s = 1``: the next states [N, 1], rewards [N] and ends [N] of states
+    [N, 1] and actions [N, 1]."""
     S2 = S + 0.1 * A
     return S2, 1.0 + 0.5 * A[:, 0], (S2[:, 0] > 1.0).astype(float)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from geoq.models import (
     GPDynamicsModel,
     PlannerSettings,
     model_returns,
+    rollout_outcomes,
     rollout_returns,
 )
 
@@ -194,3 +197,37 @@ def test_roll_outs_that_end_at_different_steps_are_each_particles_own() -> None:
                                 gamma=0.9, noise=normals[:, p : p + 1])  # fmt: skip
         assert batch[p] == pytest.approx(alone[0], rel=1e-12, abs=1e-12)
     np.testing.assert_allclose(batch[:4], 1 + 0.9 + 0.81 + 0.729)  # ended at the 4th step
+
+
+@pytest.mark.parametrize("gamma", [1.0, 0.9])
+def test_the_halted_steps_reprice_every_halt_as_a_roll_out_paid_otherwise(gamma: float) -> None:
+    """Oracle: the same roll-outs through a copy of the model whose least reward is
+    ``c`` (every reward is 1, so only the halts' price changes) return ``returns +
+    halted * (c - 1)``; a particle that ends or keeps to the data has no halted step,
+    and :func:`rollout_returns` is the first output, bit for bit."""
+    rng = np.random.default_rng(5)
+    S = rng.uniform(-1.0, 1.0, size=(300, 1))
+    A = rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2 = S + 0.1 * A
+    model = GPDynamicsModel(1, 1).fit(S, A, np.ones(300), S2, (S2[:, 0] > 0.5).astype(float), rng)
+    U = np.zeros((9, 20, 1))
+    U[:3], U[3:6, :, 0] = 1.0, [[-1.0], [-0.1], [-0.03]]  # toward the end, off the data, still
+    s0 = np.full((9, 1), 0.2)
+    s0[3:6] = -0.97  # the data end at -1.09: halted in part, over several steps
+
+    def outcomes(m: GPDynamicsModel) -> tuple[np.ndarray, np.ndarray]:
+        return rollout_outcomes(m, s0, lambda t, X, rows: U[rows, min(t, 19)], 20, gamma=gamma,
+                                value=lambda X, Aa: np.full(len(X), 7.0), value_floor=-4.0,
+                                noise=None)  # fmt: skip
+
+    returns, halted = outcomes(model)
+    alone = rollout_returns(model, s0, lambda t, X, rows: U[rows, min(t, 19)], 20, gamma=gamma,
+                            value=lambda X, Aa: np.full(len(X), 7.0), value_floor=-4.0,
+                            noise=None)  # fmt: skip
+    np.testing.assert_array_equal(returns, alone)
+    assert np.all(halted[:3] == 0.0) and np.all(halted[6:] == 0.0) and np.all(halted[3:6] > 0.0)
+    for c in (-3.0, 0.25):
+        repriced = copy.deepcopy(model)
+        repriced.reward_range = np.array([c, 1.0])
+        np.testing.assert_allclose(outcomes(repriced)[0], returns + halted * (c - 1.0),
+                                   rtol=1e-12, atol=1e-12)  # fmt: skip

@@ -9,7 +9,13 @@ the model over a long horizon (PILCO's loop).
 """
 
 from geoq.models.dynamics import GPDynamicsModel, ModelSettings
-from geoq.models.planner import CEMPlanner, PlannerSettings, model_returns, rollout_returns
+from geoq.models.planner import (
+    CEMPlanner,
+    PlannerSettings,
+    model_returns,
+    rollout_outcomes,
+    rollout_returns,
+)
 from geoq.models.policy_gradient import (
     MLPFeedback,
     PolicyGradientSettings,
@@ -34,6 +40,7 @@ __all__ = [
     "PolicySearchSettings",
     "model_returns",
     "policy_returns",
+    "rollout_outcomes",
     "rollout_returns",
     "search_gains",
     "search_policy",

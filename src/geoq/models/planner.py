@@ -37,7 +37,7 @@ from geoq._typing import FloatArray
 from geoq._validation import as_float_vector, check_int, check_real
 from geoq.models.dynamics import GPDynamicsModel
 
-__all__ = ["CEMPlanner", "PlannerSettings", "model_returns", "rollout_returns"]
+__all__ = ["CEMPlanner", "PlannerSettings", "model_returns", "rollout_outcomes", "rollout_returns"]
 
 #: The value of ``P`` states ``[P, d_s]`` and actions ``[P, d_a]`` after the horizon.
 TerminalValue = Callable[[FloatArray, FloatArray], FloatArray]
@@ -198,16 +198,36 @@ def rollout_returns(
     random numbers).
     ``value`` (None: 0) is asked about the states after the horizon and the actions
     ``act(horizon, S, rows)``; ``value_floor`` is its least."""
+    return rollout_outcomes(model, starts, act, horizon, gamma=gamma, value=value,
+                            value_floor=value_floor, noise=noise)[0]  # fmt: skip
+
+
+def rollout_outcomes(
+    model: GPDynamicsModel,
+    starts: FloatArray,
+    act: ActionRule,
+    horizon: int,
+    *,
+    gamma: float,
+    value: TerminalValue | None = None,
+    value_floor: float = 0.0,
+    noise: np.random.Generator | FloatArray | None,
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`rollout_returns`'s returns ``[P]``, and the steps each particle's halts were
+    paid the least reward for ``[P]`` (discounted, weighted by the halts' probabilities):
+    the same roll-outs with a halt paid ``c`` a step return ``returns + steps * (c -
+    model.reward_range[0])``, so the returns' range over what a halt could be worth is
+    read off one roll-out."""
     P, d = starts.shape
     S = starts.copy()
-    alive, total = np.ones(P), np.zeros(P)
+    alive, total, halted = np.ones(P), np.zeros(P), np.zeros(P)
     r_least = float(model.reward_range[0])
     after = gamma**horizon * value_floor if value is not None else 0.0
     rows = np.arange(P)
     for t in range(horizon):
         rows = rows[alive[rows] > 0.0]
         if rows.size == 0:
-            return total
+            return total, halted
         s, a = S[rows], act(t, S[rows], rows)
         if noise is None:
             mean = model.predict_mean(s, a)
@@ -222,10 +242,12 @@ def rollout_returns(
         S[rows] = s
         ends = mean[:, d + 1] > 0.5
         unknown = np.where(ends, 0.0, np.clip(model.support.distance(s) - 1.0, 0.0, 1.0))
-        rest = sum(gamma**k for k in range(t + 1, horizon)) * r_least + after  # halted after t
+        steps_left = sum(gamma**k for k in range(t + 1, horizon))
+        rest = steps_left * r_least + after  # halted after t
         total[rows] += alive[rows] * (gamma**t * mean[:, d] + unknown * rest)
+        halted[rows] += alive[rows] * unknown * steps_left
         alive[rows] = alive[rows] * ~ends * (1.0 - unknown)
     rows = rows[alive[rows] > 0.0]
     if value is not None and rows.size:
         total[rows] += gamma**horizon * alive[rows] * value(S[rows], act(horizon, S[rows], rows))
-    return total
+    return total, halted

@@ -5,8 +5,10 @@ times the model's :attr:`~geoq.models.GPDynamicsModel.step_cost`), the transitio
 since the search before, their ratio, its wall time (the holdout included), the budget
 it was given and whether it moved the weights, and the gate after it: the model's score
 for the weights that stand, the overshoot, the mean of ``Q``'s returns the gate sets it
-against (read before the search, so before a trial's verdict there) and whether a policy
-acts; then the run's totals. What ``SEARCH_WORK`` bounds (issue 46,
+against (read before the search, so before a trial's verdict there), the returns of the
+actor before the search, whether a policy acts and whether it went on trial though the
+model's score was not above ``Q``'s mean (``blind``: the model could not tell); then the
+run's totals. What ``SEARCH_WORK`` bounds (issue 46,
 part fifteen), and why no policy acts on ``Walker2d-v5`` (part sixteen)::
 
     python research/search_work.py Reacher-v5 --seed 0 --steps 5000
@@ -55,10 +57,12 @@ def main() -> None:
     def logged(self, model, n, rng, states=None):  # type: ignore[no-untyped-def]
         gap, before = n - self.searched_at, len(rows)
         q_returns = self.q_returns if self.acting else self.returns
+        returns = [round(r, 1) for r in self.returns]
         search(self, model, n, rng, states)
         if len(rows) > before:
             q_mean = float(np.mean(q_returns)) if q_returns else float("nan")
-            rows[-1] += [n, gap, self.value, self.overshoot, q_mean, self.acting]
+            blind = self.kept is not None and self.acting and self.value - self.overshoot <= q_mean
+            rows[-1] += [n, gap, self.value, self.overshoot, q_mean, returns, self.acting, blind]
 
     gradient._soft_return, planning.search_policy = counted, timed
     planning.FeedbackPlanning.search = logged
@@ -67,11 +71,11 @@ def main() -> None:
     for done in range(0, a.steps, chunk):
         agent.learn(min(chunk, a.steps - done))
     total = time.perf_counter() - start
-    for w, seconds, budget, moved, n, gap, value, overshoot, q_mean, acting in rows:
+    for w, seconds, budget, moved, n, gap, value, overshoot, q_mean, returns, acting, blind in rows:
         print(f"{n:>6} transitions (+{gap:>5}): work {w:.2e}, {w / max(gap, 1):.1e} a "
               f"transition, {seconds:6.1f} s, budget {budget:.1e}, moved {moved}; model "
               f"score {value:.1f}, overshoot {overshoot:.1f}, Q's mean {q_mean:.1f}, "
-              f"policy acts {acting}")  # fmt: skip
+              f"returns before {returns}, policy acts {acting}, blind {blind}")  # fmt: skip
     works = [row[0] / max(row[5], 1) for row in rows]
     print(f"{a.env} seed {a.seed}: {len(rows)} searches, work {sum(r[0] for r in rows):.2e}, "
           f"at most {max(works, default=0.0):.1e} a transition, searches "

@@ -6,6 +6,8 @@ and where it no longer does, ``Q`` acts on trial against it, judged on the means
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -18,7 +20,7 @@ from geoq.agents.policy_planning import (
     TEST_EPISODES,
     FeedbackPlanning,
 )
-from geoq.models import GPDynamicsModel, PolicyGradientSettings
+from geoq.models import GPDynamicsModel, PolicyGradientSettings, rollout_outcomes
 
 LOW, HIGH = np.array([-1.0]), np.array([1.0])
 
@@ -191,6 +193,57 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     assert planning.acting and planning.kept is not None and planning.kept[3] is False
     np.testing.assert_array_equal(planning.kept[0], found)
     assert planning.kept[2] == planning.q_returns == q_returns
+
+
+def _halting() -> tuple[FeedbackPlanning, GPDynamicsModel, float, float]:
+    """``Q`` acting on a model of the double integrator learned from states within 0.3 of
+    the origin only, so that a policy's 30-step roll-outs from near its edge halt; the
+    model's return for
+    the weights a search from there moves to, and that return had each halt been paid
+    the most reward seen (:func:`~geoq.models.rollout_outcomes`, whose halted steps
+    ``tests/models/test_planner.py`` checks)."""
+    rng = np.random.default_rng(0)
+    S, A = rng.uniform(-0.3, 0.3, (200, 2)), rng.uniform(-1, 1, (200, 1))
+    change = np.column_stack([0.1 * S[:, 1], 0.1 * A[:, 0]])
+    model = GPDynamicsModel(2, 1).fit(S, A, -(S[:, 0] ** 2), S + change, np.zeros(200), rng)
+    planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
+    planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
+    planning.starts = rng.uniform(0.2, 0.3, (8, 2))
+    found = copy.deepcopy(planning)
+    found.returns = [0.0] * TEST_EPISODES  # beyond any policy: Q acts on
+    found.search(model, 200, np.random.default_rng(1))
+    assert found.policy is not None and not found.acting and found.kept is None
+    policy, gains = found.policy, found.gains
+    returns, halted = rollout_outcomes(model, planning.starts,
+                                       lambda t, S, rows: policy.act(gains, S), 30, gamma=1.0,
+                                       noise=None)  # fmt: skip
+    least, most = returns.mean(), (returns + halted * np.ptp(model.reward_range)).mean()
+    assert least < most - 0.5  # the halts keep the model from telling
+    return planning, model, float(least), float(most)
+
+
+@pytest.mark.parametrize(("where", "tried_before", "tried"),
+                         [(0.5, False, True), (0.5, True, False), (1.5, False, False),
+                          (-0.5, False, True), (-0.5, True, True)])  # fmt: skip
+def test_where_halts_keep_the_model_from_telling_the_task_is_asked_once(
+    where: float, tried_before: bool, tried: bool
+) -> None:
+    """While ``Q`` acts and no policy has yet replaced it, weights a search moved that the
+    model scores below ``Q``'s mean go on trial all the same where, each halt paid the
+    most reward seen, it would have scored them above (``where``: ``Q``'s mean between
+    the two scores, 0 at the model's, 1 at the most). Once a policy has replaced ``Q``
+    (``tried_before``: ``Q``'s returns then on record), the model's score alone decides."""
+    planning, model, least, most = _halting()
+    q_returns = [least + where * (most - least)] * TEST_EPISODES
+    planning.returns = list(q_returns)
+    planning.q_returns = [least - 1.0] * TEST_EPISODES if tried_before else []
+    planning.search(model, 200, np.random.default_rng(1))
+    assert abs(planning.value - least) < 0.25 * (most - least)  # fresh starts: near
+    assert planning.acting is tried and (planning.kept is not None) is tried
+    assert planning.returns == ([] if tried else q_returns)
+    if tried:
+        assert planning.q_returns == q_returns and planning.kept is not None
+        assert planning.kept[2] == q_returns and planning.kept[3] is False
 
 
 def _q_on_trial(on_trial: bool = False) -> tuple[FeedbackPlanning, GPDynamicsModel,

@@ -34,12 +34,27 @@ by more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of th
 model that promised more than the task gave is believed that much less (on
 ``HalfCheetah-v5`` it scored a policy at 2,159 over 1,000 steps, and the task gave
 -150). Where it is not above, ``Q`` acts, and the next search starts from the weights
-found. Where it is, and the search moved the weights, they go on trial: they keep acting
+found, unless the model cannot tell (below). Where it is, and the search moved the
+weights, they go on trial: they keep acting
 only if their episodes' returns are not below the returns of the actor they replaced by
 more than :data:`~geoq.models.policy_search.HOLDOUT_SE` standard errors of the
 difference of the means; else that actor comes back (the weights before, or ``Q``), and
 the next search starts from the weights before with the data the failed ones brought. A
 search that keeps the weights it starts from changes no actor.
+
+A model that halts its roll-outs where it has no data pays each halt the least reward
+seen for the steps left, so where its roll-outs leave the data within a few steps (a
+walker that falls, with the horizon at 1,000), its score is the halts' price and says
+nothing of the policy. So until a policy has first replaced ``Q``, weights a search
+moved that the model scores below ``Q``'s mean go on trial against ``Q`` all the same
+where the model cannot tell: where the same roll-outs (its means, from the newest
+:data:`BLIND_STARTS` episodes' first states), each halt paid the most reward seen
+instead, would be above ``Q``'s mean (:meth:`FeedbackPlanning._undecided`). The task is
+asked instead of the model, once: after that trial, won or lost, the trials' records
+and the overshoot speak for the model, as they do after any policy has acted (asked
+at every search a policy moved, on ``HalfCheetah-v5``, whose episodes run 1,000 steps,
+a trial of two episodes cost 2,000 of a run's 5,000 steps, and its checkpoints measured
+a policy the task was about to reject).
 
 Where a policy acted and the model no longer expects it to beat ``Q``, ``Q`` comes back
 on trial against it: ``Q``'s record is as old as the policy's reign, and the task, not
@@ -75,12 +90,13 @@ from geoq.models import (
     ModelSettings,
     PolicyGradientSettings,
     PolicySearchSettings,
+    rollout_outcomes,
     search_gains,
     search_policy,
 )
 from geoq.models.policy_search import HOLDOUT_SE
 
-__all__ = ["BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "SEARCH_WORK",
+__all__ = ["BLIND_STARTS", "BRANCH", "EXPLORATION", "NET_MODEL", "SEARCH_EVERY", "SEARCH_WORK",
            "TEST_EPISODES", "FeedbackPlanning"]  # fmt: skip
 
 #: Least number of new transitions between two searches.
@@ -94,6 +110,9 @@ TEST_EPISODES = 2
 #: 5 minutes for 5,000 transitions, however often searches come and however often they
 #: find nothing better (docs/design-notes.md, part fifteen).
 SEARCH_WORK = 4e7
+#: Episodes whose first states the model's return for a policy is bounded from, where its
+#: halts keep it from telling whether the policy beats ``Q`` (module docstring).
+BLIND_STARTS = 64
 #: Std of the training actions' noise, in half-ranges of the action box.
 EXPLORATION = 0.1
 #: How a ``policy-net`` search climbs: Adam steps up the return of roll-outs of
@@ -221,6 +240,19 @@ class FeedbackPlanning:
                 return q_trial
         return False
 
+    def _undecided(self, model: GPDynamicsModel, q_mean: float) -> bool:
+        """Whether the model's return for the weights found, less the overshoot, would be
+        above ``q_mean`` were each halt paid the most reward seen rather than the least: its
+        means rolled out from the newest :data:`BLIND_STARTS` episodes' first states
+        (the overshoot is 0 until a policy has acted)."""
+        assert self.policy is not None
+        policy, gains = self.policy, self.gains
+        returns, halted = rollout_outcomes(model, self.starts[-BLIND_STARTS:],
+                                           lambda t, S, rows: policy.act(gains, S),
+                                           self.horizon, gamma=1.0, noise=None)  # fmt: skip
+        spread = float(model.reward_range[1] - model.reward_range[0])
+        return float(np.mean(returns + halted * spread)) - self.overshoot > q_mean
+
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
         kind = MLPFeedback if self.net else LinearFeedback
         return kind(self.low, self.high, center, scale)
@@ -250,13 +282,17 @@ class FeedbackPlanning:
         self.searched_at = n
         q_returns = self.q_returns if before[3] else before[2]
         expected = not q_returns or self.value - self.overshoot > np.mean(q_returns)
+        moved = not np.array_equal(self.gains, before[0])
+        untried = self.real_test and not before[3] and not self.q_returns
+        if not expected and moved and untried and self._undecided(model, float(np.mean(q_returns))):
+            expected = True  # the model cannot tell: the task is asked, once
         if not self.real_test:
             self.acting = True
         elif not expected and before[3] and n < 2 * self.q_lost_at:
             self.gains, self.value = before[0], before[1]  # the task answered lately: they act
         elif not expected and before[3]:  # Q again, on trial against the policy
             self.kept, self.returns, self.acting = before, [], False
-        elif expected and not np.array_equal(self.gains, before[0]):
+        elif expected and moved:
             if not before[3]:
                 self.q_returns = list(before[2])
             self.kept, self.returns, self.acting = before, [], True

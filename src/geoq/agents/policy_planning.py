@@ -50,11 +50,11 @@ moved that the model scores below ``Q``'s mean go on trial against ``Q`` all the
 where the model cannot tell: where the same roll-outs (its means, from the newest
 :data:`BLIND_STARTS` episodes' first states), each halt paid the most reward seen
 instead, would be above ``Q``'s mean (:meth:`FeedbackPlanning._undecided`). The task is
-asked instead of the model, once: after that trial, won or lost, the trials' records
-and the overshoot speak for the model, as they do after any policy has acted (asked
-at every search a policy moved, on ``HalfCheetah-v5``, whose episodes run 1,000 steps,
-a trial of two episodes cost 2,000 of a run's 5,000 steps, and its checkpoints measured
-a policy the task was about to reject).
+asked instead of the model, once a run: after that trial, won or lost, the trials'
+records and the overshoot speak for the model, as they do after any policy has acted.
+(Asked at every search where the model could not tell, on ``HalfCheetah-v5``, whose
+episodes run 1,000 steps, a trial of two episodes cost 2,000 of a run's 5,000 steps,
+and its checkpoints measured a policy the task was about to reject.)
 
 Where a policy acted and the model no longer expects it to beat ``Q``, ``Q`` comes back
 on trial against it: ``Q``'s record is as old as the policy's reign, and the task, not

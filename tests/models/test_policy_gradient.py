@@ -130,31 +130,44 @@ def test_the_smooth_returns_gradient_is_its_finite_differences() -> None:
     assert taken == 6 + sum(running[:-1]) < 6 * 15
 
 
-def test_a_closed_smooth_return_is_its_brute_force_sum_and_its_gradient_its_differences() -> None:
+@pytest.mark.parametrize("close_halts", [True, False])
+def test_a_closed_smooth_return_is_its_brute_force_sum_and_its_gradient_its_differences(
+    close_halts: bool,
+) -> None:
     """With ``tail`` steps more, a plain loop over the particles: each step's reward weighted
-    by the chance the roll-out runs, a halt paid the least reward for the steps left and the
-    tail's, and the weight left after the last step paid ``tail_reward`` for each tail step."""
+    by the chance the roll-out runs, a halt paid the least reward for the steps left (and
+    the tail's, ``close_halts``), and after the last step ``tail_reward`` for each tail step
+    weighted by the chance the roll-out runs (``close_halts``) or has not ended (else),
+    halted roll-outs stopped where they halted."""
     rng = np.random.default_rng(2)
     model = _ending_model(rng)
     policy = MLPFeedback(np.array([-1.0]), np.array([1.0]), np.zeros(3), np.ones(3), hidden=5)
     params = policy.initial(rng) + 0.5 * rng.normal(size=policy.n_params)
     starts, normals, tail, tail_reward = rng.normal(size=(6, 3)), np.zeros((15, 6, 3)), 7, 0.8
-    value, grad = soft_return(model, policy, params, starts, normals, tail, tail_reward)
-    r_least, expected = model.reward_range[0], 0.0
+    value, grad = soft_return(model, policy, params, starts, normals, tail, tail_reward,
+                              close_halts)  # fmt: skip
+    r_least, expected, halted = model.reward_range[0], 0.0, 0
     for p in range(6):
-        s, w = starts[p : p + 1], 1.0
+        s, w, alive = starts[p : p + 1], 1.0, 1.0
         for t in range(15):
             mean = model.predict_mean(s, policy.act(params, s))[0]
             s = s + mean[:3]
             end = min(max(mean[4], 0.0), 1.0)
             halt = min(max(model.support.distance(s)[0] - 1.0, 0.0), 1.0)
-            expected += w * (mean[3] + (1 - end) * halt * (14 - t + tail) * r_least)
+            rest = 14 - t + (tail if close_halts else 0)
+            expected += w * (mean[3] + (1 - end) * halt * rest * r_least)
             w *= (1 - end) * (1 - halt)
-        expected += w * tail * tail_reward
+            alive *= 1 - end
+            halted += halt == 1.0 and w == 0.0
+            if w == 0.0:
+                break
+        expected += (w if close_halts else alive) * tail * tail_reward
+    assert halted >= 2  # halted roll-outs, whose closing value the two ways part
     assert value == pytest.approx(expected / 6, rel=1e-9)
     assert value != soft_return(model, policy, params, starts, normals)[0]
     differences = _central(
-        lambda v: soft_return(model, policy, v, starts, normals, tail, tail_reward)[0],
+        lambda v: soft_return(model, policy, v, starts, normals, tail, tail_reward,
+                              close_halts)[0],
         params, 1e-4,
     )  # fmt: skip
     np.testing.assert_allclose(grad, differences, rtol=1e-4,

@@ -48,7 +48,10 @@ roll-outs are closed as the judge's would go on, for ``horizon - branch_horizon`
 more: the data's mean reward for each where a roll-out still runs, nothing where it ended,
 and the least reward for each where it halted. This is model-based value expansion's
 closing value (MVE, Feinberg et al. 2018) at its crudest, one constant per step: it tells
-a roll-out alive from one ended or lost, and nothing more.
+a roll-out alive from one ended or lost, and nothing more. With ``close_halts`` False only
+ending loses it: a roll-out's closing value is weighted by the product of its steps'
+``1 - p`` alone, so that falling costs a branch what it costs the judge and leaving the
+data what it costs with no closing value.
 """
 
 from __future__ import annotations
@@ -103,6 +106,12 @@ class PolicyGradientSettings:
     run them: the data's mean reward for each of those steps where the roll-out still runs
     (none where it ended), and a halt paid the least reward for them too (module
     docstring). False: a branched roll-out is worth its ``branch_horizon`` steps alone."""
+    close_halts: bool = True
+    """With ``close_branch``: a halted roll-out loses the closing value, as an ended one does,
+    and its halt is paid the least reward for the closing steps too (True). False: only
+    ending loses it; each roll-out's closing value is weighted by the chance it has not
+    ended (the termination outputs' ``1 - p`` alone), and a halt is paid the least reward for
+    the branch's steps left and no more, as with no closing value (module docstring)."""
     budget: float = 4e10
     """Work the Adam steps of each climb may ask of the model per search, in
     :attr:`~geoq.models.GPDynamicsModel.step_cost` units summed over the particles' steps
@@ -187,15 +196,20 @@ def soft_return(
     normals: FloatArray,
     tail: int = 0,
     tail_reward: float = 0.0,
+    close_halts: bool = True,
 ) -> tuple[float, FloatArray]:
     """The mean smooth return (module docstring) of ``P`` roll-outs from ``starts`` [P, d_s]
     under the weights ``params`` over ``T`` model steps with the state changes' standard
     normals ``normals`` [T, P, d_s], and its gradient ``[n_params]``. ``tail`` steps more
-    close the roll-outs: a roll-out's weight after the ``T`` steps times ``tail_reward``
-    for each, and a halt paid the least reward for them too (0: no closing value)."""
+    close the roll-outs (0: no closing value): ``tail_reward`` for each, times the roll-out's
+    weight after the ``T`` steps, and a halt paid the least reward for them too; or, with
+    ``close_halts`` False, times the product of its steps' ``1 - p`` alone (the chance it
+    has not ended; a halt then keeps it, and is paid the least reward for the ``T`` steps'
+    rest alone)."""
     tail = check_int(tail, "tail", minimum=0)
     tail_reward = check_real(tail_reward, "tail_reward")
-    value, grad, _ = _soft_return(model, policy, params, starts, normals, tail, tail_reward)
+    value, grad, _ = _soft_return(model, policy, params, starts, normals, tail, tail_reward,
+                                  bool(close_halts))  # fmt: skip
     return value, grad
 
 
@@ -207,11 +221,14 @@ def _soft_return(
     normals: FloatArray,
     tail: int = 0,
     tail_reward: float = 0.0,
+    close_halts: bool = True,
 ) -> tuple[float, FloatArray, int]:
     """:func:`soft_return`, and the particles' model steps it took."""
     T, (P, d) = normals.shape[0], starts.shape
     r_least = float(model.reward_range[0])
+    halt_tail, closing = (tail if close_halts else 0), tail * tail_reward
     S, w, total = starts.copy(), np.ones(P), np.zeros(P)
+    alive = np.ones(P)  # the product of 1 - p alone: what carries the closing for ends
     rows, tape = np.arange(P), []
     for t in range(T):
         rows = rows[w[rows] > 0.0]  # an ended or halted roll-out adds nothing more
@@ -228,21 +245,25 @@ def _soft_return(
         end = np.clip(mean[:, d + 1], 0.0, 1.0)
         dist, dist_grad = model.support.distance_gradient(s)
         halt = np.clip(dist - 1.0, 0.0, 1.0)
-        rest = (T - 1 - t + tail) * r_least
+        rest = (T - 1 - t + halt_tail) * r_least
         reward = mean[:, d] + (1.0 - end) * halt * rest
         total[rows] += w_t * reward
         live = ((mean[:, d + 1] > 0) & (mean[:, d + 1] < 1), (dist > 1) & (dist < 2))
-        tape.append((rows, cache, jac, w_t, reward, end, halt, rest, dist_grad, *live))
+        tape.append((rows, cache, jac, w_t, alive[rows], reward, end, halt, rest, dist_grad,
+                     *live))  # fmt: skip
         w[rows] = w_t * (1.0 - end) * (1.0 - halt)
-    if tail:  # the closing value of the roll-outs still running
-        total += w * (tail * tail_reward)
+        alive[rows] *= 1.0 - end
+    if tail:  # the closing value of the roll-outs still running (not ended)
+        total += (w if close_halts else alive) * closing
     grad = np.zeros(policy.n_params)
-    g_next, gw_next = np.zeros((P, d)), np.full(P, tail * tail_reward)
-    for rows, cache, jac, w, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(
+    g_next = np.zeros((P, d))
+    gw_next = np.full(P, closing if close_halts else 0.0)  # what carries the closing value
+    ga_next = np.full(P, 0.0 if close_halts else closing)
+    for rows, cache, jac, w, a, reward, end, halt, rest, dist_grad, end_live, halt_live in reversed(
         tape
     ):
-        gw = gw_next[rows]
-        g_end = -w * halt * rest - gw * w * (1.0 - halt)
+        gw, ga = gw_next[rows], ga_next[rows]
+        g_end = -w * halt * rest - gw * w * (1.0 - halt) - ga * a
         g_halt = w * (1.0 - end) * rest - gw * w * (1.0 - end)
         g_state = g_next[rows] + (g_halt * halt_live)[:, None] * dist_grad
         g_mean = np.zeros(jac.shape[:2])
@@ -252,6 +273,7 @@ def _soft_return(
         grad += g_params
         g_next[rows] = g_state + g_input[:, :d] + g_policy_state
         gw_next[rows] = reward + gw * (1.0 - end) * (1.0 - halt)
+        ga_next[rows] = ga * (1.0 - end)
     return float(total.mean()), grad / P, sum(len(step[0]) for step in tape)
 
 
@@ -331,7 +353,7 @@ def _climb(
         if branch is not None:
             picked = branch[rng.integers(len(branch), size=c.particles)]
         value, grad, taken = _soft_return(model, policy, theta, picked, normals, tail,
-                                          tail_reward)  # fmt: skip
+                                          tail_reward, c.close_halts)  # fmt: skip
         with np.errstate(over="ignore"):  # a return chaotic in the weights: stop there
             square = grad * grad
         if not (np.isfinite(value) and np.all(np.isfinite(square))):

@@ -231,3 +231,45 @@ def test_the_halted_steps_reprice_every_halt_as_a_roll_out_paid_otherwise(gamma:
         repriced.reward_range = np.array([c, 1.0])
         np.testing.assert_allclose(outcomes(repriced)[0], returns + halted * (c - 1.0),
                                    rtol=1e-12, atol=1e-12)  # fmt: skip
+
+
+@pytest.mark.parametrize("trust_ends", [True, False])
+def test_an_end_beyond_the_data_is_believed_or_paid_as_far_as_the_state_is_known(
+    trust_ends: bool,
+) -> None:
+    """Oracle: a plain loop over the particles. A step's halt probability ``u`` (its next
+    state's distance from the data) is paid as a halt where the step does not end, and, with
+    ``trust_ends`` False, where it ends too, the end then counting on the other ``1 - u``."""
+    rng = np.random.default_rng(5)
+    S = rng.uniform(-1.0, 1.0, size=(300, 1))
+    A = rng.uniform(-1.0, 1.0, size=(300, 1))
+    S2 = S + 0.1 * A
+    rewards = 1.0 + 0.5 * S[:, 0]
+    model = GPDynamicsModel(1, 1).fit(S, A, rewards, S2, (S2[:, 0] > 0.5).astype(float), rng)
+    s0 = np.array([[0.2], [0.3], [-0.97], [0.0], [1.05], [1.08]])
+    U = np.array([1.0, 0.5, -0.5, 0.0, 1.0, 1.0])[:, None]  # ends, halts, stays, beyond
+    gamma, horizon, r_least = 0.9, 12, float(model.reward_range[0])
+    returns, halted = rollout_outcomes(model, s0, lambda t, X, rows: U[rows], horizon,
+                                       gamma=gamma, noise=None, trust_ends=trust_ends)  # fmt: skip
+    beyond = 0  # ends predicted at a state beyond the data
+    for p in range(len(s0)):
+        s, alive, total, steps = s0[p : p + 1], 1.0, 0.0, 0.0
+        for t in range(horizon):
+            mean = model.predict_mean(s, U[p : p + 1])[0]
+            s = s + mean[:1]
+            ends = mean[2] > 0.5
+            u = min(max(model.support.distance(s)[0] - 1.0, 0.0), 1.0)
+            beyond += bool(ends and u > 0.0)
+            u = 0.0 if ends and trust_ends else u
+            left = sum(gamma**k for k in range(t + 1, horizon))
+            total += alive * (gamma**t * mean[1] + u * left * r_least)
+            steps += alive * u * left
+            alive *= (not ends) * (1.0 - u)
+            if alive == 0.0:
+                break
+        assert returns[p] == pytest.approx(total, rel=1e-12, abs=1e-12)
+        assert halted[p] == pytest.approx(steps, rel=1e-12, abs=1e-12)
+    assert beyond >= 2 and np.any(halted[:4] > 0.0) and np.any(returns[:4] != 0.0)
+    trusted = rollout_outcomes(model, s0, lambda t, X, rows: U[rows], horizon, gamma=gamma,
+                               noise=None)  # fmt: skip
+    assert trust_ends == np.array_equal(returns, trusted[0])

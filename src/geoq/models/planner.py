@@ -212,12 +212,16 @@ def rollout_outcomes(
     value: TerminalValue | None = None,
     value_floor: float = 0.0,
     noise: np.random.Generator | FloatArray | None,
+    trust_ends: bool = True,
 ) -> tuple[FloatArray, FloatArray]:
     """:func:`rollout_returns`'s returns ``[P]``, and the steps each particle's halts were
     paid the least reward for ``[P]`` (discounted, weighted by the halts' probabilities):
     the same roll-outs with a halt paid ``c`` a step return ``returns + steps * (c -
     model.reward_range[0])``, so the returns' range over what a halt could be worth is
-    read off one roll-out."""
+    read off one roll-out. ``trust_ends`` False: an end predicted at a state beyond
+    the data is no more believed than the state is, so the step's halt probability is
+    paid as a halt whether it ends or not, and the end counts on the rest (True, as
+    :func:`rollout_returns`: an end is believed wherever it is predicted)."""
     P, d = starts.shape
     S = starts.copy()
     alive, total, halted = np.ones(P), np.zeros(P), np.zeros(P)
@@ -241,7 +245,9 @@ def rollout_outcomes(
             mean, s = model.draw(s, a, normals[rows])
         S[rows] = s
         ends = mean[:, d + 1] > 0.5
-        unknown = np.where(ends, 0.0, np.clip(model.support.distance(s) - 1.0, 0.0, 1.0))
+        unknown = np.clip(model.support.distance(s) - 1.0, 0.0, 1.0)
+        if trust_ends:  # an end is believed wherever it is predicted
+            unknown = np.where(ends, 0.0, unknown)
         steps_left = sum(gamma**k for k in range(t + 1, horizon))
         rest = steps_left * r_least + after  # halted after t
         total[rows] += alive[rows] * (gamma**t * mean[:, d] + unknown * rest)

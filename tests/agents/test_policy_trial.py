@@ -195,30 +195,51 @@ def test_weights_the_model_expects_worse_than_q_do_not_replace_it() -> None:
     assert planning.kept[2] == planning.q_returns == q_returns
 
 
-def _halting() -> tuple[FeedbackPlanning, GPDynamicsModel, float, float]:
+def _halting(ends_beyond: bool = False) -> tuple[FeedbackPlanning, GPDynamicsModel, float,
+                                                 float]:  # fmt: skip
     """``Q`` acting on a model of the double integrator learned from states within 0.3 of
     the origin only, so that a policy's 30-step roll-outs from near its edge halt; the
     model's return for
     the weights a search from there moves to, and that return had each halt been paid
     the most reward seen (:func:`~geoq.models.rollout_outcomes`, whose halted steps
-    ``tests/models/test_planner.py`` checks)."""
+    ``tests/models/test_planner.py`` checks). ``ends_beyond``: the model's termination
+    output is 1 wherever the next state lies a spacing and a half or more from the data
+    (a walker's model that has seen only falls, where it has no data: every roll-out
+    ends as it halts, and paid 1 a step more, so that ending costs), and the most is read
+    where an end there is paid as a halt."""
     rng = np.random.default_rng(0)
     S, A = rng.uniform(-0.3, 0.3, (200, 2)), rng.uniform(-1, 1, (200, 1))
     change = np.column_stack([0.1 * S[:, 1], 0.1 * A[:, 0]])
-    model = GPDynamicsModel(2, 1).fit(S, A, -(S[:, 0] ** 2), S + change, np.zeros(200), rng)
+    rewards = float(ends_beyond) - S[:, 0] ** 2
+    model = GPDynamicsModel(2, 1).fit(S, A, rewards, S + change, np.zeros(200), rng)
+    if ends_beyond:
+        predict = model.predict_mean
+
+        def ending(states: FloatArray, actions: FloatArray) -> FloatArray:
+            mean = predict(states, actions)
+            beyond = model.support.distance(states + mean[:, :2]) >= 1.5
+            mean[:, 3] = np.where(beyond, 1.0, mean[:, 3])
+            return mean
+
+        model.predict_mean = ending  # type: ignore[method-assign]
     planning = FeedbackPlanning(2, LOW, HIGH, horizon=30, net=True, real_test=True)
     planning.gradient_settings = PolicyGradientSettings(horizon=30, steps=30, learning_rate=0.05)
     planning.starts = rng.uniform(0.2, 0.3, (8, 2))
     found = copy.deepcopy(planning)
-    found.returns = [0.0] * TEST_EPISODES  # beyond any policy: Q acts on
+    found.returns = [31.0 * ends_beyond] * TEST_EPISODES  # beyond any policy: Q acts on
     found.search(model, 200, np.random.default_rng(1))
     assert found.policy is not None and not found.acting and found.kept is None
     policy, gains = found.policy, found.gains
-    returns, halted = rollout_outcomes(model, planning.starts,
-                                       lambda t, S, rows: policy.act(gains, S), 30, gamma=1.0,
-                                       noise=None)  # fmt: skip
-    least, most = returns.mean(), (returns + halted * np.ptp(model.reward_range)).mean()
+    bounds = {}
+    for trust in (True, False):
+        returns, halted = rollout_outcomes(model, planning.starts,
+                                           lambda t, S, rows: policy.act(gains, S), 30,
+                                           gamma=1.0, noise=None, trust_ends=trust)  # fmt: skip
+        bounds[trust] = returns.mean(), (returns + halted * np.ptp(model.reward_range)).mean()
+    least, most = bounds[not ends_beyond]
     assert least < most - 0.5  # the halts keep the model from telling
+    if ends_beyond:  # believed, the ends beyond the data would tell: too little to try
+        assert bounds[True][1] < least + 0.25 * (most - least)
     return planning, model, float(least), float(most)
 
 
@@ -244,6 +265,18 @@ def test_where_halts_keep_the_model_from_telling_the_task_is_asked_once(
     if tried:
         assert planning.q_returns == q_returns and planning.kept is not None
         assert planning.kept[2] == q_returns and planning.kept[3] is False
+
+
+def test_an_end_the_model_predicts_beyond_its_data_does_not_tell_either() -> None:
+    """A model that ends every roll-out where it has no data scores the weights found at
+    what the steps before paid, however the halts are priced, were its ends believed there;
+    they are not (an end beyond the data is as unknown as the state), so with ``Q``'s mean
+    halfway to the return where those halts are paid the most reward, the task is asked."""
+    planning, model, least, most = _halting(ends_beyond=True)
+    q_returns = [least + 0.5 * (most - least)] * TEST_EPISODES
+    planning.returns = list(q_returns)
+    planning.search(model, 200, np.random.default_rng(1))
+    assert planning.value < q_returns[0] and planning.acting and planning.kept is not None
 
 
 def _q_on_trial(on_trial: bool = False) -> tuple[FeedbackPlanning, GPDynamicsModel,

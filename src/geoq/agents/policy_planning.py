@@ -243,13 +243,16 @@ class FeedbackPlanning:
     def _undecided(self, model: GPDynamicsModel, q_mean: float) -> bool:
         """Whether the model's return for the weights found would be above ``q_mean`` were
         each halt paid the most reward seen rather than the least: its means rolled out
-        from the newest :data:`BLIND_STARTS` episodes' first states. (Asked only before any
-        policy has acted, so there is no overshoot to take off.)"""
+        from the newest :data:`BLIND_STARTS` episodes' first states, an end predicted
+        beyond the data no more believed than the state there (paid as a halt as far as
+        the state is unknown). (Asked only before any policy has acted, so there is no
+        overshoot to take off.)"""
         assert self.policy is not None
         policy, gains = self.policy, self.gains
         returns, halted = rollout_outcomes(model, self.starts[-BLIND_STARTS:],
                                            lambda t, S, rows: policy.act(gains, S),
-                                           self.horizon, gamma=1.0, noise=None)  # fmt: skip
+                                           self.horizon, gamma=1.0, noise=None,
+                                           trust_ends=False)  # fmt: skip
         spread = float(model.reward_range[1] - model.reward_range[0])
         return float(np.mean(returns + halted * spread)) > q_mean
 

@@ -49,8 +49,10 @@ nothing of the policy. So until a policy has first replaced ``Q``, weights a sea
 moved that the model scores below ``Q``'s mean go on trial against ``Q`` all the same
 where the model cannot tell: where the same roll-outs (its means, from the newest
 :data:`BLIND_STARTS` episodes' first states), each halt paid the most reward seen
-instead, would be above ``Q``'s mean (:meth:`FeedbackPlanning._undecided`). The task is
-asked instead of the model, once a run: after that trial, won or lost, the trials'
+instead, would be above ``Q``'s mean (:meth:`FeedbackPlanning._undecided`); an end the
+model predicts beyond its data is paid there as a halt, as far as the state is unknown
+(a model that has seen a walker only fall predicts a fall wherever it has no data). The
+task is asked instead of the model, once a run: after that trial, won or lost, the trials'
 records and the overshoot speak for the model, as they do after any policy has acted.
 (Asked at every search where the model could not tell, on ``HalfCheetah-v5``, whose
 episodes run 1,000 steps, a trial of two episodes cost 2,000 of a run's 5,000 steps,

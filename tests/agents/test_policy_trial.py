@@ -202,11 +202,11 @@ def _halting(ends_beyond: bool = False) -> tuple[FeedbackPlanning, GPDynamicsMod
     model's return for
     the weights a search from there moves to, and that return had each halt been paid
     the most reward seen (:func:`~geoq.models.rollout_outcomes`, whose halted steps
-    ``tests/models/test_planner.py`` checks). ``ends_beyond``: the model's termination
-    output is 1 wherever the next state lies a spacing and a half or more from the data
-    (a walker's model that has seen only falls, where it has no data: every roll-out
-    ends as it halts, and paid 1 a step more, so that ending costs), and the most is read
-    where an end there is paid as a halt."""
+    ``tests/models/test_planner.py`` checks). ``ends_beyond``: the rewards are 1 a step
+    more (so that ending costs), the termination output is 1 wherever the next state lies
+    a spacing and a half or more from the data (as a walker's model that has seen only
+    falls predicts a fall wherever it has no data), and the most is read with an end
+    there paid as a halt."""
     rng = np.random.default_rng(0)
     S, A = rng.uniform(-0.3, 0.3, (200, 2)), rng.uniform(-1, 1, (200, 1))
     change = np.column_stack([0.1 * S[:, 1], 0.1 * A[:, 0]])

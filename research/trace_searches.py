@@ -38,11 +38,12 @@ def main() -> None:
 
     search, seconds = FeedbackPlanning.search, {"search": 0.0}
 
-    def traced(self: FeedbackPlanning, model: Any, n: int, rng: np.random.Generator) -> None:
+    def traced(self: FeedbackPlanning, model: Any, n: int, rng: np.random.Generator,
+               states: Any = None) -> None:
         before = (self.acting, self.value, np.round(self.returns, 1).tolist(),
                   np.round(self.q_returns, 1).tolist())  # fmt: skip
         start = time.perf_counter()
-        search(self, model, n, rng)
+        search(self, model, n, rng, states)
         took = time.perf_counter() - start
         seconds["search"] += took
         print(f"  search at {n}: {took:.1f} s, acting {before[0]} -> {self.acting}, score "

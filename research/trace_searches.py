@@ -38,8 +38,9 @@ def main() -> None:
 
     search, seconds = FeedbackPlanning.search, {"search": 0.0}
 
-    def traced(self: FeedbackPlanning, model: Any, n: int, rng: np.random.Generator,
-               states: Any = None) -> None:
+    def traced(
+        self: FeedbackPlanning, model: Any, n: int, rng: np.random.Generator, states: Any = None
+    ) -> None:
         before = (self.acting, self.value, np.round(self.returns, 1).tolist(),
                   np.round(self.q_returns, 1).tolist())  # fmt: skip
         start = time.perf_counter()

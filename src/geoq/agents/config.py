@@ -15,6 +15,7 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
+from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
 from geoq.agents.state import LearningState, as_range, check_value_bounds, value_bounds
 from geoq.gp import SparseOnlineGP
@@ -86,6 +87,9 @@ class GPQConfig:
     """Std of the ``gaussian`` exploration noise, as a fraction of each action half-range."""
     n_candidates: int = 21
     """Candidate actions per state (a grid in 1-D; rounded up to a power of 2 in more)."""
+    greedy_actions: GreedyActions = "candidates"
+    """``Q``'s greedy action: the candidates' best, or (``data``) the best of the actions taken
+    at the stored states nearest the state (:mod:`geoq.agents.greedy_data`); learning alike."""
     noise: float = 0.01
     """Observation-noise variance of the standardised targets."""
     lengthscale: float | tuple[float, ...] | None = None
@@ -253,6 +257,7 @@ class GPQConfig:
             ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
             ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
             ("explore_map", EXPLORE_MAP_MODES), ("planner", PLANNERS),
+            ("greedy_actions", GREEDY_ACTIONS),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
@@ -459,10 +464,8 @@ def rule_coverage(lengthscale: FloatArray, max_bv: int) -> float:
     given = np.asarray(lengthscale)
     ls = given.astype(np.float64) if given.dtype.kind in "iuf" else np.empty(0)
     if ls.ndim > 1 or ls.size == 0 or not np.all(np.isfinite(ls)) or np.any(ls <= 0.0):
-        raise ValueError(
-            "lengthscale must be one finite length-scale > 0 or a flat sequence of them (one "
-            f"per input, in scaled units), got {lengthscale!r}"
-        )
+        raise ValueError("lengthscale must be one finite length-scale > 0 or a flat sequence of "
+                         f"them (one per input, in scaled units), got {lengthscale!r}")  # fmt: skip
     return float(max_bv * np.prod(np.minimum(ls, 1.0)))
 
 
@@ -475,9 +478,8 @@ def _bounds(rb: Any, name: str) -> tuple[float, float] | None:
     except ValueError:
         ok = False
     if not ok or pair[0] > pair[1]:
-        raise ValueError(
-            f"{name} must be two finite numbers (r_min, r_max) with r_min <= r_max, got {rb!r}"
-        )
+        raise ValueError(f"{name} must be two finite numbers (r_min, r_max) with r_min <= r_max, "
+                         f"got {rb!r}")  # fmt: skip
     return (pair[0], pair[1])
 
 

@@ -13,12 +13,12 @@ How it learns (every choice is a field of :class:`GPQConfig`):
 1. **Inputs.** ``x = [s, a] / scale`` with ``scale`` the half-range of each
    space's bounds (:func:`geoq.tasks.box_scaling`); angles wrap (known for
    the bundled tasks, declared with ``periods=`` otherwise).
-2. **Acting.** One batched GP call per step gives the posterior mean and std
-   of ``Q(s, a_k)`` at ``K`` candidate actions (a grid in 1-D, refined by
-   parabolic interpolation; a Sobol' set in more dimensions); the action
-   maximises the acquisition (:mod:`geoq.agents.acquisition`): UCB
-   ``mean + beta std`` (GP-UCB), Thompson-style samples, or the greedy action
-   plus Gaussian noise.
+2. **Acting.** One batched GP call per step gives the posterior mean and std of ``Q(s, a_k)``
+   at ``K`` candidate actions (a grid in 1-D, refined by parabolic interpolation; a Sobol'
+   set in more dimensions); the action maximises the acquisition
+   (:mod:`geoq.agents.acquisition`): UCB ``mean + beta std`` (GP-UCB), Thompson-style
+   samples, or the greedy action plus Gaussian noise. Greedy with ``greedy_actions="data"``:
+   the best action taken near the state (:mod:`geoq.agents.greedy_data`).
 3. **Online update** (Q-learning with a GP, Engel et al. 2005 in spirit):
    every environment step streams ``(x_t, y_t)`` into the sparse online GP with
    the bootstrapped target ``y_t = r_t + gamma (1 - terminated) max_k Q(s_{t+1},
@@ -68,6 +68,7 @@ from geoq.agents.acquisition import Exploration, candidate_actions, choose_actio
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
 from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
+from geoq.agents.greedy_data import greedy_in_data
 from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.model_planning import ModelPlanning
 from geoq.agents.replay import replay_strategy
@@ -83,8 +84,7 @@ __all__ = ["REPLAYS", "EpisodeRecord", "GPQAgent", "GPQConfig"]
 #: A data-driven input scale is refreshed when the states' spread outgrows it by this factor.
 RESCALE_FACTOR = 1.5
 
-#: The posterior mean and std of ``Q`` ``[n, K]`` at states x candidates; None while the
-#: input scaling waits for its warm-up.
+#: ``Q``'s posterior mean and std ``[n, K]`` at states x candidates (None: scaling pending).
 QValues = tuple[FloatArray, FloatArray] | None
 #: Called with each finished episode's record; ``False`` stops learning.
 Callback = Callable[[EpisodeRecord], bool | None] | None
@@ -223,8 +223,7 @@ class GPQAgent:
             raise ValueError(
                 "the observation space has infinite bounds and the agent has not yet seen the "
                 f"{self.config.warmup_steps} warm-up steps that fix its input scaling: call "
-                "learn() first, or pass scaling= with a finite scale per dimension"
-            )
+                "learn() first, or pass scaling= with a finite scale per dimension")  # fmt: skip
         return self.scaling.transform_pairs(states, self.candidates)
 
     # ------------------------------------------------------------------ acting
@@ -244,6 +243,8 @@ class GPQAgent:
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
             actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
+            if deterministic and self.config.greedy_actions == "data":
+                actions = greedy_in_data(self, S, actions)
             if deterministic and self.planning.greedy_active:
                 actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
@@ -494,7 +495,6 @@ class GPQAgent:
         self.__dict__.update(state, _lock=threading.RLock())
 
     def __repr__(self) -> str:
-        return (
-            f"GPQAgent(env={self.env_id or '?'}, kernel={self.config.kernel!r}, "
-            f"max_bv={self.config.max_bv}, timesteps={self.num_timesteps})"
-        )
+        c = self.config
+        return (f"GPQAgent(env={self.env_id or '?'}, kernel={c.kernel!r}, max_bv={c.max_bv}, "
+                f"timesteps={self.num_timesteps})")  # fmt: skip

@@ -1,0 +1,69 @@
+"""``greedy_actions="data"``: the greedy action among the actions the data hold near a state.
+
+``Q``'s posterior mean is the GP's interpolation of its targets where actions were tried,
+and its extrapolation elsewhere. With one action dimension the agent's candidates are a
+grid, each point of it near the actions tried; in more they are a few points of a wide
+box (32 Sobol' points in ``Walker2d-v5``'s six dimensions), most of them far from every
+action tried at a state, and the candidates' best mean is often an extrapolation's error
+(the extrapolation error of Fujimoto et al. 2019; docs/design-notes.md, part nineteen).
+
+Here the greedy action at ``s`` is the best, by ``Q``'s posterior mean, of the actions
+taken at the ``K`` stored states nearest ``s`` (``K`` the candidates' count; the stored
+transitions ``Q`` learns from, its ``window``): batch-constrained Q-learning's choice
+(Fujimoto et al. 2019), the data's own actions standing in for its generative model.
+Nearness is the squared-exponential kernel's: each state input wrapped where periodic,
+in the scaled inputs over the state length-scales in use. Ties go to the nearer state.
+Only greedy actions change: training actions, targets and everything the agent learns
+are as with the candidates.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from geoq._geometry import scaled_wrapped_squared_distances
+from geoq._typing import FloatArray
+
+if TYPE_CHECKING:
+    from geoq.agents.gpq import GPQAgent
+
+__all__ = ["GREEDY_ACTIONS", "GreedyActions", "greedy_in_data", "nearest_actions"]
+
+#: Where ``Q``'s greedy action is sought (``GPQConfig.greedy_actions``).
+GreedyActions = Literal["candidates", "data"]
+GREEDY_ACTIONS: tuple[str, ...] = ("candidates", "data")
+
+
+def nearest_actions(
+    states: FloatArray, stored_states: FloatArray, stored_actions: FloatArray, k: int,
+    periods: FloatArray, lengthscales: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """The actions ``[n, k', d_a]`` taken at the ``k' = min(k, N)`` stored states
+    ``[N, d_s]`` nearest each of ``states`` [n, d_s] (all in scaled units), nearest
+    first (ties: the earlier stored), by ``sum_j (wrap(s_j - t_j, periods_j) /
+    lengthscales_j)^2`` (``periods`` [d_s], 0 where not periodic)."""
+    r2 = scaled_wrapped_squared_distances(states, stored_states, periods, lengthscales)
+    order = np.argsort(r2, axis=1, kind="stable")[:, : min(k, stored_states.shape[0])]
+    return stored_actions[order]
+
+
+def greedy_in_data(agent: GPQAgent, states: FloatArray, candidates: FloatArray) -> FloatArray:
+    """``agent``'s greedy actions ``[n, d_a]`` at raw ``states`` [n, d_s] (module
+    docstring); ``candidates`` [n, d_a], the candidates' greedy ones, while it has stored
+    nothing."""
+    stored = agent.buffer.transitions(last=agent.config.window)
+    if len(stored) == 0:
+        return candidates
+    d_s = agent.obs_dim
+    scale = np.asarray(agent.scaling.scale, dtype=np.float64)[:d_s]
+    lengthscales = np.broadcast_to(np.asarray(agent._lengthscale(), dtype=np.float64),
+                                   (agent.scaling.dim,))[:d_s]  # fmt: skip
+    actions = nearest_actions(states / scale, stored.states / scale, stored.actions,
+                              len(agent.candidates), agent.scaling.scaled_periods()[:d_s],
+                              np.ascontiguousarray(lengthscales))  # fmt: skip
+    n, k, d_a = actions.shape
+    X = agent.inputs(np.repeat(states, k, axis=0), actions.reshape(n * k, d_a))
+    q = agent.gp.predict(X).reshape(n, k)  # standardised: the same order as Q's
+    return actions[np.arange(n), np.argmax(q, axis=1)]

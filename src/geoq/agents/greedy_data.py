@@ -19,21 +19,37 @@ are as with the candidates.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
 from geoq._geometry import scaled_wrapped_squared_distances
 from geoq._typing import FloatArray
-
-if TYPE_CHECKING:
-    from geoq.agents.gpq import GPQAgent
+from geoq.agents.buffer import TransitionBuffer
+from geoq.gp import SparseOnlineGP
+from geoq.learners.scaling import InputScaling
 
 __all__ = ["GREEDY_ACTIONS", "GreedyActions", "greedy_in_data", "nearest_actions"]
 
 #: Where ``Q``'s greedy action is sought (``GPQConfig.greedy_actions``).
 GreedyActions = Literal["candidates", "data"]
 GREEDY_ACTIONS: tuple[str, ...] = ("candidates", "data")
+
+
+class _Agent(Protocol):
+    """What :func:`greedy_in_data` reads of a :class:`~geoq.agents.GPQAgent` (named by
+    its members: the agent's module imports this one)."""
+
+    config: Any
+    obs_dim: int
+    candidates: FloatArray
+    buffer: TransitionBuffer
+    scaling: InputScaling
+    gp: SparseOnlineGP
+
+    def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
+
+    def _lengthscale(self) -> float | tuple[float, ...]: ...
 
 
 def nearest_actions(
@@ -49,7 +65,7 @@ def nearest_actions(
     return stored_actions[order]
 
 
-def greedy_in_data(agent: GPQAgent, states: FloatArray, candidates: FloatArray) -> FloatArray:
+def greedy_in_data(agent: _Agent, states: FloatArray, candidates: FloatArray) -> FloatArray:
     """``agent``'s greedy actions ``[n, d_a]`` at raw ``states`` [n, d_s] (module
     docstring); ``candidates`` [n, d_a], the candidates' greedy ones, while it has stored
     nothing."""

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import geoq.agents.greedy_data as greedy_data
 from geoq.agents import GPQAgent
 from geoq.agents.greedy_data import nearest_actions
 
@@ -94,6 +95,18 @@ def test_greedy_actions_in_the_data_survive_save_and_load(tmp_path: Path) -> Non
     assert loaded.config.greedy_actions == "data"
     states = agent.buffer.transitions().states[::29]
     np.testing.assert_array_equal(loaded.predict(states)[0], agent.predict(states)[0])
+
+
+def test_a_batch_of_states_taken_in_blocks_gets_the_same_actions(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    agent = GPQAgent("geoq/TwoRooms-v0", seed=4, greedy_actions="data", **TASK).learn(300)
+    states = agent.buffer.transitions().states[::3] + 0.01
+    whole, _ = agent.predict(states)
+    monkeypatch.setattr(greedy_data, "BLOCK", 7 * len(agent.buffer))  # 7 states a block
+    np.testing.assert_array_equal(agent.predict(states)[0], whole)
+    monkeypatch.setattr(greedy_data, "BLOCK", 1)  # one state a block
+    np.testing.assert_array_equal(agent.predict(states)[0], whole)
 
 
 def test_greedy_actions_are_validated() -> None:

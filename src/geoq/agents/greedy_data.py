@@ -12,8 +12,9 @@ taken at the ``K`` stored states nearest ``s`` (``K`` the candidates' count; the
 transitions ``Q`` learns from, its ``window``): batch-constrained Q-learning's choice
 (Fujimoto et al. 2019), the data's own actions standing in for its generative model.
 Nearness is the squared-exponential kernel's: each state input wrapped where periodic,
-in the scaled inputs over the state length-scales in use. Ties go to the nearer state.
-Only greedy actions change: training actions, targets and everything the agent learns
+in the scaled inputs over the state length-scales in use; states are taken in blocks of at
+most :data:`BLOCK` distances. Of equal means, the nearer state's action is taken. Only
+greedy actions change: training actions, targets and everything the agent learns
 are as with the candidates.
 """
 
@@ -29,11 +30,14 @@ from geoq.agents.buffer import TransitionBuffer
 from geoq.gp import SparseOnlineGP
 from geoq.learners.scaling import InputScaling
 
-__all__ = ["GREEDY_ACTIONS", "GreedyActions", "greedy_in_data", "nearest_actions"]
+__all__ = ["BLOCK", "GREEDY_ACTIONS", "GreedyActions", "greedy_in_data", "nearest_actions"]
 
 #: Where ``Q``'s greedy action is sought (``GPQConfig.greedy_actions``).
 GreedyActions = Literal["candidates", "data"]
 GREEDY_ACTIONS: tuple[str, ...] = ("candidates", "data")
+#: Most state-to-stored-state distances held at once (32 MB): a batch of states is taken
+#: in blocks of ``BLOCK // N`` states (at least one), ``N`` the stored states.
+BLOCK = 2**22
 
 
 class _Agent(Protocol):
@@ -76,9 +80,13 @@ def greedy_in_data(agent: _Agent, states: FloatArray, candidates: FloatArray) ->
     scale = np.asarray(agent.scaling.scale, dtype=np.float64)[:d_s]
     lengthscales = np.broadcast_to(np.asarray(agent._lengthscale(), dtype=np.float64),
                                    (agent.scaling.dim,))[:d_s]  # fmt: skip
-    actions = nearest_actions(states / scale, stored.states / scale, stored.actions,
-                              len(agent.candidates), agent.scaling.scaled_periods()[:d_s],
-                              np.ascontiguousarray(lengthscales))  # fmt: skip
+    periods, x, data = agent.scaling.scaled_periods()[:d_s], states / scale, stored.states / scale
+    rows = max(1, BLOCK // len(stored))
+    actions = np.concatenate([
+        nearest_actions(x[i : i + rows], data, stored.actions, len(agent.candidates), periods,
+                        np.ascontiguousarray(lengthscales))
+        for i in range(0, len(x), rows)
+    ])  # fmt: skip
     n, k, d_a = actions.shape
     X = agent.inputs(np.repeat(states, k, axis=0), actions.reshape(n * k, d_a))
     q = agent.gp.predict(X).reshape(n, k)  # standardised: the same order as Q's

@@ -1,7 +1,9 @@
-"""``greedy_actions="data"``: the greedy action among the actions the data hold near a state."""
+"""``greedy_actions="data"`` (and ``"auto"`` past one action dimension): the greedy action
+among the actions the data hold near a state."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -9,7 +11,7 @@ import numpy as np
 import pytest
 
 import geoq.agents.greedy_data as greedy_data
-from geoq.agents import GPQAgent
+from geoq.agents import GPQAgent, GPQConfig
 from geoq.agents.greedy_data import nearest_actions
 
 #: TwoRooms (2 states, 2 actions) with its map off and a length-scale per input, so that
@@ -107,6 +109,38 @@ def test_a_batch_of_states_taken_in_blocks_gets_the_same_actions(
     np.testing.assert_array_equal(agent.predict(states)[0], whole)
     monkeypatch.setattr(greedy_data, "BLOCK", 1)  # one state a block
     np.testing.assert_array_equal(agent.predict(states)[0], whole)
+
+
+@pytest.mark.parametrize(
+    ("env_id", "resolved"),
+    [("geoq/TwoRooms-v0", "data"), ("geoq/PendulumSwingUp-v0", "candidates")],
+)
+def test_auto_seeks_greedy_actions_in_the_data_past_one_action_dimension(
+    env_id: str, resolved: str
+) -> None:
+    kwargs = TASK if env_id == "geoq/TwoRooms-v0" else {"explore_map": "off"}  # Q acts
+    agent = GPQAgent(env_id, seed=5, **kwargs).learn(300)
+    assert GPQConfig().greedy_actions == "auto" and agent.config.greedy_actions == resolved
+    states = agent.buffer.transitions(last=300).states[::3] + 0.01
+    default, _ = agent.predict(states)
+    np.testing.assert_array_equal(default, replace_greedy(agent, resolved).predict(states)[0])
+    other = "candidates" if resolved == "data" else "data"
+    assert not np.array_equal(default, replace_greedy(agent, other).predict(states)[0])
+
+
+def test_files_without_greedy_actions_keep_the_candidates(tmp_path: Path) -> None:
+    """An agent saved before ``greedy_actions`` existed took the candidates' best."""
+    agent = GPQAgent("geoq/TwoRooms-v0", seed=6, **TASK).learn(200)
+    path, old = tmp_path / "agent.npz", tmp_path / "old.npz"
+    agent.save(path)
+    with np.load(path, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["config"]["greedy_actions"]
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez(old, **arrays)
+    assert GPQAgent.load(path).config.greedy_actions == "data"
+    assert GPQAgent.load(old).config.greedy_actions == "candidates"
 
 
 def test_greedy_actions_are_validated() -> None:

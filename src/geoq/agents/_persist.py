@@ -46,8 +46,12 @@ _ARCHIVE_KIND = "GPQAgent"
 _ARCHIVE_VERSION = 1
 
 #: Config fields a file written before them lacks, and the value its code behaved as:
-#: phases every ``train_every`` steps, length-scales by the rule.
-_LEGACY_CONFIG: dict[str, Any] = {"train_fraction": 0.0, "hyperparameters": "rule"}
+#: phases every ``train_every`` steps, length-scales by the rule, the candidates' greedy.
+_LEGACY_CONFIG: dict[str, Any] = {
+    "train_fraction": 0.0,
+    "hyperparameters": "rule",
+    "greedy_actions": "candidates",
+}
 
 #: The config field (or file entry) behind each of a kernel's saved hyper-parameters
 #: (:func:`geoq.kernels.base.kernel_to_arrays` keys without ``kernel.``); the others

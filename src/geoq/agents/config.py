@@ -15,7 +15,7 @@ import numpy as np
 from geoq._typing import FloatArray
 from geoq._validation import check_budget, check_int, check_real
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
-from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions
+from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions, resolve_greedy_actions
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
 from geoq.agents.state import LearningState, as_range, check_value_bounds, value_bounds
 from geoq.gp import SparseOnlineGP
@@ -23,20 +23,9 @@ from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
 from geoq.learners.scaling import InputScaling
 
 __all__ = [
-    "HYPERPARAMETERS",
-    "PLANNERS",
-    "PRIORS",
-    "REPLAYS",
-    "GPQConfig",
-    "Hyperparameters",
-    "Planner",
-    "Prior",
-    "Replay",
-    "check_learn_arguments",
-    "check_seed",
-    "default_max_bv",
-    "rule_coverage",
-]
+    "HYPERPARAMETERS", "PLANNERS", "PRIORS", "REPLAYS", "GPQConfig", "Hyperparameters", "Planner",
+    "Prior", "Replay", "check_learn_arguments", "check_seed", "default_max_bv", "rule_coverage",
+]  # fmt: skip
 
 #: Largest ``beta`` and ``action_noise``: past a million posterior standard deviations UCB
 #: is pure uncertainty sampling, past a million half-ranges the noise only hits the box's
@@ -87,9 +76,10 @@ class GPQConfig:
     """Std of the ``gaussian`` exploration noise, as a fraction of each action half-range."""
     n_candidates: int = 21
     """Candidate actions per state (a grid in 1-D; rounded up to a power of 2 in more)."""
-    greedy_actions: GreedyActions = "candidates"
+    greedy_actions: GreedyActions = "auto"
     """``Q``'s greedy action: the candidates' best, or (``data``) the best of the actions taken
-    at the stored states nearest the state (:mod:`geoq.agents.greedy_data`); learning alike."""
+    at the stored states nearest the state (:mod:`geoq.agents.greedy_data`); ``auto``: ``data``
+    past one action dimension (:meth:`for_dims`). Learning alike."""
     noise: float = 0.01
     """Observation-noise variance of the standardised targets."""
     lengthscale: float | tuple[float, ...] | None = None
@@ -316,7 +306,8 @@ class GPQConfig:
         (and episodes of at most ``time_limit`` steps, None: unknown): ``max_bv`` resolved
         (:func:`default_max_bv`), ``policy_horizon`` resolved from ``time_limit`` (capped
         at :data:`POLICY_HORIZON_CAP`), ``lengthscale``'s length checked, and
-        ``hyperparameters``, ``prior`` and ``planner`` resolved where ``auto``: by whether
+        ``greedy_actions`` (:func:`resolve_greedy_actions`), ``hyperparameters``, ``prior``
+        and ``planner`` resolved where ``auto``: by whether
         the rule's length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
         speed, does not change how the agent learns); ``hyperparameters`` to ``rule``
@@ -342,8 +333,9 @@ class GPQConfig:
         if planner == "auto":
             planner = "off" if covered else "policy-net"
         horizon = self.policy_horizon or min(time_limit or POLICY_HORIZON_CAP, POLICY_HORIZON_CAP)
+        greedy = resolve_greedy_actions(self.greedy_actions, action_dim)
         return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior,
-                       planner=planner, policy_horizon=horizon)  # fmt: skip
+                       planner=planner, policy_horizon=horizon, greedy_actions=greedy)  # fmt: skip
 
     def lengthscales_given(self) -> bool:
         """Whether the user chose the squared exponential's length-scales: ``lengthscale``

@@ -17,7 +17,7 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    at ``K`` candidate actions (a grid in 1-D, refined by parabolic interpolation; a Sobol'
    set in more dimensions); the action maximises the acquisition
    (:mod:`geoq.agents.acquisition`): UCB ``mean + beta std`` (GP-UCB), Thompson-style
-   samples, or the greedy action plus Gaussian noise. Greedy with ``greedy_actions="data"``:
+   samples, or the greedy action plus Gaussian noise. Greedy past one action dimension:
    the best action taken near the state (:mod:`geoq.agents.greedy_data`).
 3. **Online update** (Q-learning with a GP, Engel et al. 2005 in spirit):
    every environment step streams ``(x_t, y_t)`` into the sparse online GP with

@@ -30,11 +30,18 @@ from geoq.agents.buffer import TransitionBuffer
 from geoq.gp import SparseOnlineGP
 from geoq.learners.scaling import InputScaling
 
-__all__ = ["BLOCK", "GREEDY_ACTIONS", "GreedyActions", "greedy_in_data", "nearest_actions"]
+__all__ = [
+    "BLOCK",
+    "GREEDY_ACTIONS",
+    "GreedyActions",
+    "greedy_in_data",
+    "nearest_actions",
+    "resolve_greedy_actions",
+]
 
 #: Where ``Q``'s greedy action is sought (``GPQConfig.greedy_actions``).
-GreedyActions = Literal["candidates", "data"]
-GREEDY_ACTIONS: tuple[str, ...] = ("candidates", "data")
+GreedyActions = Literal["auto", "candidates", "data"]
+GREEDY_ACTIONS: tuple[str, ...] = ("auto", "candidates", "data")
 #: Most state-to-stored-state distances held at once (32 MB): a batch of states is taken
 #: in blocks of ``BLOCK // N`` states (at least one), ``N`` the stored states.
 BLOCK = 2**22
@@ -54,6 +61,14 @@ class _Agent(Protocol):
     def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
 
     def _lengthscale(self) -> float | tuple[float, ...]: ...
+
+
+def resolve_greedy_actions(setting: GreedyActions, action_dim: int) -> GreedyActions:
+    """``greedy_actions=setting`` for a task of ``action_dim`` actions: ``auto`` is ``data``
+    past one action dimension, where the candidates are a few Sobol' points of a wide box,
+    most far from every action tried, and ``candidates`` in 1-D, where they are a grid,
+    each point near the actions tried; the other settings are what they say."""
+    return ("data" if action_dim > 1 else "candidates") if setting == "auto" else setting
 
 
 def nearest_actions(

@@ -4,7 +4,7 @@ Agents saved at each checkpoint by ``research/checkpoint_actors.py --save DIR`` 
 loaded, and 10 greedy episodes (evaluation seed ``10_000 + SEED``, as the benchmark's)
 are run with ``Q``'s greedy action sought:
 
-- ``q``: among the agent's candidates (``greedy_actions="candidates"``, the default);
+- ``q``: among the agent's candidates (``greedy_actions="candidates"``; the default in 1-D);
 - ``dense``: among the candidates and 256 more scrambled Sobol' points of the box;
 - ``near``: among the actions taken at the ``K`` stored states nearest the state
   (``K`` the candidates' count), every state input counting alike (the scaled states);

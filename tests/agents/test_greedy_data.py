@@ -75,10 +75,11 @@ def replace_greedy(agent: GPQAgent, greedy: str) -> GPQAgent:
     return agent
 
 
-def test_seeking_greedy_actions_in_the_data_changes_nothing_learned() -> None:
+def test_seeking_greedy_actions_in_the_data_changes_nothing_learned_by_ucb() -> None:
     runs = []
     for greedy in ("candidates", "data"):
-        agent = GPQAgent("geoq/TwoRooms-v0", seed=2, greedy_actions=greedy, **TASK)
+        agent = GPQAgent("geoq/TwoRooms-v0", seed=2, greedy_actions=greedy, exploration="ucb",
+                         **TASK)  # fmt: skip
         for _ in range(3):
             agent.learn(120)
             agent.predict(agent.buffer.transitions().states[-5:], deterministic=True)
@@ -146,3 +147,25 @@ def test_files_without_greedy_actions_keep_the_candidates(tmp_path: Path) -> Non
 def test_greedy_actions_are_validated() -> None:
     with pytest.raises(ValueError, match="greedy_actions must be one of"):
         GPQAgent("geoq/TwoRooms-v0", greedy_actions="nearest")
+
+
+@pytest.mark.parametrize("mode", ["gaussian", "greedy"])
+def test_training_actions_noise_the_greedy_action_among_the_data(mode: str) -> None:
+    """``exploration="gaussian"`` with the data's greedy: that action plus the noise the
+    agent's generator draws next, clipped to the box; ``greedy``: that action alone."""
+    agent = GPQAgent("geoq/TwoRooms-v0", seed=7, greedy_actions="data", exploration=mode,
+                     action_noise=0.8, **TASK).learn(300)  # fmt: skip
+    states = agent.buffer.transitions().states[::7] + 0.01
+    greedy, _ = agent.predict(states, deterministic=True)
+    draws = np.random.default_rng()
+    draws.bit_generator.state = agent.rng.bit_generator.state
+    got, _ = agent.predict(states, deterministic=False)
+    half = 0.5 * (agent.action_high - agent.action_low)
+    noise = 0.8 * half * draws.standard_normal(greedy.shape) if mode == "gaussian" else 0.0
+    np.testing.assert_array_equal(got, np.clip(greedy + noise, agent.action_low,
+                                               agent.action_high))  # fmt: skip
+    assert agent.rng.bit_generator.state == draws.bit_generator.state
+    if mode == "gaussian":
+        assert np.any(got == agent.action_high) and np.any(np.abs(got) < agent.action_high)
+    candidates, _ = replace_greedy(agent, "candidates").predict(states, deterministic=True)
+    assert not np.array_equal(greedy, candidates)

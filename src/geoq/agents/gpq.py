@@ -18,7 +18,8 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    set in more dimensions); the action maximises the acquisition
    (:mod:`geoq.agents.acquisition`): UCB ``mean + beta std`` (GP-UCB), Thompson-style
    samples, or the greedy action plus Gaussian noise. Greedy past one action dimension:
-   the best action taken near the state (:mod:`geoq.agents.greedy_data`).
+   the best action taken near the state (:mod:`geoq.agents.greedy_data`), the action
+   ``gaussian`` noises.
 3. **Online update** (Q-learning with a GP, Engel et al. 2005 in spirit):
    every environment step streams ``(x_t, y_t)`` into the sparse online GP with
    the bootstrapped target ``y_t = r_t + gamma (1 - terminated) max_k Q(s_{t+1},
@@ -64,11 +65,11 @@ from geoq._typing import FloatArray
 from geoq.agents import _env
 from geoq.agents._evidence import refit_lengthscales
 from geoq.agents._persist import load_agent, save_agent
-from geoq.agents.acquisition import Exploration, candidate_actions, choose_actions
+from geoq.agents.acquisition import candidate_actions, choose_actions
 from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
 from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
-from geoq.agents.greedy_data import greedy_in_data
+from geoq.agents.greedy_data import act_in_data
 from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.model_planning import ModelPlanning
 from geoq.agents.replay import replay_strategy
@@ -242,21 +243,20 @@ class GPQAgent:
                                         self.rng)  # fmt: skip
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
-            actions = self._act(mean, std, "greedy" if deterministic else self.config.exploration)
-            if deterministic and self.config.greedy_actions == "data":
-                actions = greedy_in_data(self, S, actions)
+            actions = self._act(S, mean, std, greedy=deterministic)
             if deterministic and self.planning.greedy_active:
                 actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None
 
-    def _act(self, mean: FloatArray, std: FloatArray, mode: Exploration) -> FloatArray:
-        half = 0.5 * (self.action_high - self.action_low)
-        return choose_actions(
-            mean, std, self.candidates, mode, beta=self.config.beta,
-            noise_scale=self.config.action_noise * half, low=self.action_low,
-            high=self.action_high, rng=self.rng,
-        )  # fmt: skip
+    def _act(self, S: FloatArray, mean: FloatArray, std: FloatArray, greedy: bool) -> FloatArray:
+        mode = "greedy" if greedy else self.config.exploration
+        if self.config.greedy_actions == "data" and mode in ("greedy", "gaussian"):
+            return act_in_data(self, S, mean, mode, self.rng)
+        half, c = 0.5 * (self.action_high - self.action_low), self.config
+        return choose_actions(mean, std, self.candidates, mode, beta=c.beta, rng=self.rng,
+                              noise_scale=c.action_noise * half, low=self.action_low,
+                              high=self.action_high)  # fmt: skip
 
     def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
         """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one, else
@@ -268,7 +268,7 @@ class GPQAgent:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
         if self.planning.active:
             return self.planning.action(self, s, self.rng)
-        return self._act(*q, self.config.exploration)
+        return self._act(s, *q, greedy=False)
 
     def _obs_scale(self) -> FloatArray:
         return np.asarray(self.scaling.scale[: self.obs_dim])

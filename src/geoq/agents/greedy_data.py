@@ -13,9 +13,12 @@ transitions ``Q`` learns from, its ``window``): batch-constrained Q-learning's c
 (Fujimoto et al. 2019), the data's own actions standing in for its generative model.
 Nearness is the squared-exponential kernel's: each state input wrapped where periodic,
 in the scaled inputs over the state length-scales in use; states are taken in blocks of at
-most :data:`BLOCK` distances. Of equal means, the nearer state's action is taken. Only
-greedy actions change: training actions, targets and everything the agent learns
-are as with the candidates.
+most :data:`BLOCK` distances. Of equal means, the nearer state's action is taken.
+
+The greedy action changes, and with it the training actions of ``exploration="greedy"``
+and ``"gaussian"`` (:func:`act_in_data`: the greedy action plus noise, as TD3's,
+Fujimoto et al. 2018). The other explorations' training actions (UCB, Thompson) and the
+targets (their max is over the candidates) are as with the candidates.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ __all__ = [
     "BLOCK",
     "GREEDY_ACTIONS",
     "GreedyActions",
+    "act_in_data",
     "greedy_in_data",
     "nearest_actions",
     "resolve_greedy_actions",
@@ -53,6 +57,8 @@ class _Agent(Protocol):
 
     config: Any
     obs_dim: int
+    action_low: FloatArray
+    action_high: FloatArray
     candidates: FloatArray
     buffer: TransitionBuffer
     scaling: InputScaling
@@ -106,3 +112,16 @@ def greedy_in_data(agent: _Agent, states: FloatArray, candidates: FloatArray) ->
     X = agent.inputs(np.repeat(states, k, axis=0), actions.reshape(n * k, d_a))
     q = agent.gp.predict(X).reshape(n, k)  # standardised: the same order as Q's
     return actions[np.arange(n), np.argmax(q, axis=1)]
+
+
+def act_in_data(agent: _Agent, states: FloatArray, mean: FloatArray, mode: str,
+                rng: np.random.Generator) -> FloatArray:  # fmt: skip
+    """``agent``'s actions ``[n, d_a]`` at raw ``states`` [n, d_s] by ``mode``, ``greedy``
+    or ``gaussian``, from ``Q``'s means ``mean`` [n, K] at its candidates: the greedy
+    action among the data's (:func:`greedy_in_data`), plus, with ``gaussian``, noise of
+    ``config.action_noise`` half-ranges drawn from ``rng``; clipped to the action box."""
+    actions = greedy_in_data(agent, states, agent.candidates[np.argmax(mean, axis=1)])
+    if mode == "gaussian":
+        half = 0.5 * (agent.action_high - agent.action_low)
+        actions = actions + agent.config.action_noise * half * rng.standard_normal(actions.shape)
+    return np.clip(actions, agent.action_low, agent.action_high)

@@ -69,7 +69,8 @@ class GPQConfig:
     gamma: float = 0.98
     """Discount factor."""
     exploration: Exploration = "ucb"
-    """``ucb`` (mean + beta std), ``thompson``, ``gaussian`` (greedy + noise) or ``greedy``."""
+    """``ucb`` (mean + beta std), ``thompson``, ``gaussian`` (greedy + noise) or ``greedy``;
+    greedy as ``greedy_actions`` says (:func:`~geoq.agents.greedy_data.act_in_data`)."""
     beta: float = 0.5
     """UCB width, in posterior standard deviations."""
     action_noise: float = 0.3

@@ -169,3 +169,23 @@ def test_training_actions_noise_the_greedy_action_among_the_data(mode: str) -> N
         assert np.any(got == agent.action_high) and np.any(np.abs(got) < agent.action_high)
     candidates, _ = replace_greedy(agent, "candidates").predict(states, deterministic=True)
     assert not np.array_equal(greedy, candidates)
+
+
+def test_learning_takes_its_training_actions_around_the_datas_greedy(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where ``Q`` acts, every training step's action is :func:`act_in_data`'s (the map and
+    the planner off), as the stored transitions show."""
+    agent = GPQAgent("geoq/TwoRooms-v0", seed=8, greedy_actions="data", exploration="gaussian",
+                     **TASK).learn(200)  # fmt: skip
+    taken: list[np.ndarray] = []
+
+    def spy(*args: object) -> np.ndarray:
+        assert args[3] == "gaussian"
+        taken.append(greedy_data.act_in_data(*args))  # type: ignore[arg-type]
+        return taken[-1]
+
+    monkeypatch.setattr("geoq.agents.gpq.act_in_data", spy)
+    agent.learn(60)
+    assert len(taken) == 60
+    np.testing.assert_array_equal(agent.buffer.transitions().actions[-60:], np.vstack(taken))

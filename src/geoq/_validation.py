@@ -28,11 +28,13 @@ __all__ = [
     "check_budget",
     "check_count",
     "check_int",
+    "check_learn_arguments",
     "check_magnitude",
     "check_nonnegative",
     "check_novelty_tol",
     "check_positive",
     "check_real",
+    "check_seed",
 ]
 
 #: Largest magnitude of a GP input coordinate or target: squares of differences of such
@@ -271,3 +273,26 @@ def check_real(
         bounds = " and ".join(p for p in (lo, hi) if p)
         raise ValueError(f"{name} must be a finite number {bounds}, got {value!r}")
     return v
+
+
+def check_seed(seed: Any) -> int | None:
+    """``seed`` as a Python int: None or an integer >= 0 (NumPy's included, not a bool)."""
+    if seed is None:
+        return None
+    if isinstance(seed, bool | np.bool_) or not isinstance(seed, Integral) or seed < 0:
+        raise ValueError(
+            f"seed must be None or an integer >= 0 (NumPy's SeedSequence entropy), got {seed!r}"
+        )
+    return int(seed)
+
+
+def check_learn_arguments(total_timesteps: Any, progress_bar: Any, callback: Any) -> None:
+    """The arguments of :meth:`GPQAgent.learn`, checked before any step."""
+    check_int(total_timesteps, "total_timesteps", 0)
+    if not isinstance(progress_bar, bool | np.bool_):
+        raise ValueError(f"progress_bar must be True or False, got {progress_bar!r}")
+    if callback is not None and not callable(callback):
+        raise ValueError(
+            "callback must be None or a function called with each finished episode's "
+            f"EpisodeRecord (return False to stop), got {callback!r}"
+        )

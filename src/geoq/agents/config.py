@@ -7,13 +7,18 @@ Saved with every agent and reported with every result; ``as_dict`` /
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
-from numbers import Integral
 from typing import Any, Literal
 
 import numpy as np
 
 from geoq._typing import FloatArray
-from geoq._validation import check_budget, check_int, check_real
+from geoq._validation import (
+    check_budget,
+    check_int,
+    check_learn_arguments,
+    check_real,
+    check_seed,
+)
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
 from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions, resolve_greedy_actions
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
@@ -400,29 +405,6 @@ class GPQConfig:
 
 #: Every field's default (``GPQConfig.lengthscales_given`` compares with them).
 _DEFAULTS: dict[str, Any] = {f.name: f.default for f in fields(GPQConfig)}
-
-
-def check_seed(seed: Any) -> int | None:
-    """``seed`` as a Python int: None or an integer >= 0 (NumPy's included, not a bool)."""
-    if seed is None:
-        return None
-    if isinstance(seed, bool | np.bool_) or not isinstance(seed, Integral) or seed < 0:
-        raise ValueError(
-            f"seed must be None or an integer >= 0 (NumPy's SeedSequence entropy), got {seed!r}"
-        )
-    return int(seed)
-
-
-def check_learn_arguments(total_timesteps: Any, progress_bar: Any, callback: Any) -> None:
-    """The arguments of :meth:`GPQAgent.learn`, checked before any step."""
-    check_int(total_timesteps, "total_timesteps", 0)
-    if not isinstance(progress_bar, bool | np.bool_):
-        raise ValueError(f"progress_bar must be True or False, got {progress_bar!r}")
-    if callback is not None and not callable(callback):
-        raise ValueError(
-            "callback must be None or a function called with each finished episode's "
-            f"EpisodeRecord (return False to stop), got {callback!r}"
-        )
 
 
 def default_max_bv(input_dim: int) -> int:

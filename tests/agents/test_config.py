@@ -63,16 +63,14 @@ def test_rule_coverage_counts_how_often_the_basis_tiles_the_box() -> None:
 def test_auto_follows_whether_the_rule_covers_the_inputs(
     obs_dim: int, action_dim: int, hyperparameters: str, prior: str
 ) -> None:
-    noise = 0.01 if prior == "optimistic" else 0.1
     c = GPQConfig().for_dims(obs_dim, action_dim)
-    assert (c.hyperparameters, c.prior, c.noise) == (hyperparameters, prior, noise)
+    assert (c.hyperparameters, c.prior) == (hyperparameters, prior)
     # A smaller budget, chosen for speed, does not change how the agent learns.
     small = GPQConfig(max_bv=10).for_dims(obs_dim, action_dim)
-    assert (small.hyperparameters, small.prior, small.noise) == (hyperparameters, prior, noise)
+    assert (small.hyperparameters, small.prior) == (hyperparameters, prior)
     # Values given are kept.
-    given = GPQConfig(hyperparameters="rule", prior="midrange", noise=0.3)
-    resolved = given.for_dims(obs_dim, action_dim)
-    assert (resolved.hyperparameters, resolved.prior, resolved.noise) == ("rule", "midrange", 0.3)
+    given = GPQConfig(hyperparameters="rule", prior="midrange").for_dims(obs_dim, action_dim)
+    assert (given.hyperparameters, given.prior) == ("rule", "midrange")
 
 
 @pytest.mark.parametrize(
@@ -161,11 +159,9 @@ def test_defaults_resolve_as_pinned_on_every_task(kernel: str, max_bv: int | Non
      ("Pendulum-v1", "rule", "optimistic"), ("MountainCarContinuous-v0", "rule", "optimistic")],
 )  # fmt: skip
 def test_the_bundled_tasks_resolve_as_pinned(env_id: str, hyperparameters: str, prior: str) -> None:
-    agent = GPQAgent(env_id, max_bv=10)
-    c = agent.config
+    c = GPQAgent(env_id, max_bv=10).config
     assert (c.hyperparameters, c.prior, c.lengthscale) == (hyperparameters, prior, None)
     assert c.planner == "off"
-    assert c.noise == agent.gp.noise == 0.01  # the noise these tasks were learned with
 
 
 @FUZZ
@@ -185,7 +181,6 @@ def test_defaults_resolve_by_the_coverage_of_the_default_rule(
     assert c.hyperparameters == ("evidence" if fit else "rule")
     assert c.prior == ("optimistic" if covered else "empirical")
     assert c.planner == ("off" if covered else "policy-net")
-    assert c.noise == (0.01 if covered else 0.1)
     assert c.for_dims(obs_dim, action_dim) == c
     chosen = GPQConfig(kernel=kernel, max_bv=max_bv, planner="off").for_dims(obs_dim, action_dim)  # type: ignore[arg-type]
     assert chosen.planner == "off"
@@ -254,23 +249,14 @@ def test_an_agent_resolves_auto_once_and_saves_the_choice(tmp_path: Path) -> Non
     env = PointToGoalWithDistractors(extra=4)  # 5 + 1 inputs: the rule cannot cover them
     agent = GPQAgent(env, seed=0, max_bv=60, gamma=0.9)
     assert (agent.config.hyperparameters, agent.config.prior) == ("evidence", "empirical")
-    assert agent.config.noise == agent.gp.noise == 0.1
     agent.learn(300)
-    assert agent.gp.noise == 0.1  # the evidence refits rebuild the GP with it
     assert agent.log.evidence_fits and len(agent.state.fitted_lengthscale) == 6
     agent.save(tmp_path / "agent.npz")
     loaded = GPQAgent.load(tmp_path / "agent.npz", env=PointToGoalWithDistractors(extra=4))
-    assert loaded.config == agent.config and loaded.gp.noise == 0.1
+    assert loaded.config == agent.config
     assert GPQAgent(PointToGoal(), max_bv=60).config.hyperparameters == "rule"
     assert agent.config.planner == loaded.config.planner == "policy-net"
     assert GPQAgent(PointToGoal(), max_bv=60).config.planner == "off"
-
-
-@pytest.mark.parametrize("noise", ["bogus", "", 0.0, -0.1, float("nan"), True])
-def test_noise_is_auto_or_a_positive_variance(noise: Any) -> None:
-    with pytest.raises(ValueError, match="noise"):
-        GPQConfig(noise=noise)
-    assert GPQConfig().noise == "auto" and GPQConfig(noise=0.5).noise == 0.5
 
 
 def test_numpy_scalars_become_python_numbers_and_the_agent_saves(tmp_path: Path) -> None:

@@ -148,7 +148,7 @@ EDITS: dict[str, list[Any]] = {
     "hyperparameters": ["auto", "rule", "evidence"],
     "max_bv": [None, 30, 400, 800, 20, 0, 2.5],
     "kernel": ["euclidean", "nearest", "interpolated", "resistance"],
-    "amplitude": [1.0, 2.0], "noise": ["auto", 0.01, 0.1, 0.02], "tol": [1e-6, 1e-4],
+    "amplitude": [1.0, 2.0], "noise": [0.01, 0.02], "tol": [1e-6, 1e-4],
     "lengthscale": [None, 0.3, [0.15, 0.6], [0.1, 0.2, 0.3], -1.0],
     "state_lengthscale": [0.15, 0.2], "action_lengthscale": [0.6, 0.5],
     "eps": [0.3, 0.5], "sigma_sp": [0.03, 0.1], "n_candidates": [21, 5],

@@ -28,8 +28,7 @@ from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
 from geoq.learners.scaling import InputScaling
 
 __all__ = [
-    "HYPERPARAMETERS", "NOISE_COVERED", "NOISE_UNCOVERED", "PLANNERS", "PRIORS", "REPLAYS",
-    "GPQConfig", "Hyperparameters", "Planner",
+    "HYPERPARAMETERS", "PLANNERS", "PRIORS", "REPLAYS", "GPQConfig", "Hyperparameters", "Planner",
     "Prior", "Replay", "check_learn_arguments", "check_seed", "default_max_bv", "rule_coverage",
 ]  # fmt: skip
 
@@ -55,8 +54,6 @@ PLANNERS: tuple[str, ...] = ("off", "auto", "cem", "cem-q", "policy", "policy-ne
 POLICY_HORIZON_CAP = 1000
 Hyperparameters = Literal["auto", "rule", "evidence"]
 HYPERPARAMETERS: tuple[str, ...] = ("auto", "rule", "evidence")
-#: ``noise="auto"``'s variances where the default budget covers the inputs, and where not.
-NOISE_COVERED, NOISE_UNCOVERED = 0.01, 0.1
 
 
 @dataclass(frozen=True)
@@ -89,11 +86,8 @@ class GPQConfig:
     """``Q``'s greedy action: the candidates' best, or (``data``) the best of the actions taken
     at the stored states nearest the state (:mod:`geoq.agents.greedy_data`); ``auto``: ``data``
     past one action dimension (:meth:`for_dims`). Learning alike."""
-    noise: float | Literal["auto"] = "auto"
-    """Observation-noise variance of the standardised targets; ``auto`` (resolved by
-    :meth:`for_dims`): 0.01 where the default budget covers the inputs (as for ``prior``),
-    0.1 where not: there the max over actions compounds the regression's excursions from
-    backup to backup (targets several times the returns earned; docs/design-notes.md)."""
+    noise: float = 0.01
+    """Observation-noise variance of the standardised targets."""
     lengthscale: float | tuple[float, ...] | None = None
     """Squared-exponential length-scale(s) in scaled input units (``euclidean``); a
     sequence (stored as a tuple) has one entry per input dimension ``d_s + d_a``. ``None``: the rule
@@ -292,11 +286,7 @@ class GPQConfig:
         for name in ("beta", "action_noise"):
             check_real(getattr(self, name), name, low=0.0, high=MAX_EXPLORATION)
         check_real(self.train_fraction, "train_fraction", low=0.0)
-        if isinstance(self.noise, str) and self.noise != "auto":
-            raise ValueError(f"noise must be 'auto' or a variance > 0, got {self.noise!r}")
-        if self.noise != "auto":
-            check_real(self.noise, "noise", low=0.0, low_open=True)
-        for name in ("amplitude", "eps", "sigma_sp", "sigma_se",
+        for name in ("noise", "amplitude", "eps", "sigma_sp", "sigma_se",
                      "resistance_lengthscale", "sweep_tol", "state_lengthscale",
                      "action_lengthscale"):  # fmt: skip
             check_real(getattr(self, name), name, low=0.0, low_open=True)
@@ -313,8 +303,7 @@ class GPQConfig:
         (variance, widths, noise, tol) are checked here, with the config."""
         try:
             kernel = self.make_kernel(self.rule_lengthscale(1, 1), None)
-            noise = NOISE_COVERED if self.noise == "auto" else self.noise
-            SparseOnlineGP(kernel, noise=noise, max_bv=1, tol=self.tol)
+            SparseOnlineGP(kernel, noise=self.noise, max_bv=1, tol=self.tol)
         except ValueError as exc:
             raise ValueError(f"these settings make no valid GP: {exc}") from None
 
@@ -323,8 +312,8 @@ class GPQConfig:
         (and episodes of at most ``time_limit`` steps, None: unknown): ``max_bv`` resolved
         (:func:`default_max_bv`), ``policy_horizon`` resolved from ``time_limit`` (capped
         at :data:`POLICY_HORIZON_CAP`), ``lengthscale``'s length checked, and
-        ``greedy_actions`` (:func:`resolve_greedy_actions`), ``hyperparameters``, ``prior``,
-        ``planner`` and ``noise`` resolved where ``auto``: by whether
+        ``greedy_actions`` (:func:`resolve_greedy_actions`), ``hyperparameters``, ``prior``
+        and ``planner`` resolved where ``auto``: by whether
         the rule's length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
         speed, does not change how the agent learns); ``hyperparameters`` to ``rule``
@@ -349,14 +338,10 @@ class GPQConfig:
         planner = self.planner
         if planner == "auto":
             planner = "off" if covered else "policy-net"
-        noise = self.noise
-        if noise == "auto":
-            noise = NOISE_COVERED if covered else NOISE_UNCOVERED
         horizon = self.policy_horizon or min(time_limit or POLICY_HORIZON_CAP, POLICY_HORIZON_CAP)
         greedy = resolve_greedy_actions(self.greedy_actions, action_dim)
         return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior,
-                       planner=planner, policy_horizon=horizon, greedy_actions=greedy,
-                       noise=noise)  # fmt: skip
+                       planner=planner, policy_horizon=horizon, greedy_actions=greedy)  # fmt: skip
 
     def lengthscales_given(self) -> bool:
         """Whether the user chose the squared exponential's length-scales: ``lengthscale``

@@ -198,7 +198,7 @@ class GPQAgent:
 
     def _new_gp(self) -> SparseOnlineGP:
         c, kernel = self.config, self.config.agent_kernel(self._lengthscale(), self.scaling)
-        return SparseOnlineGP(kernel, noise=float(c.noise), max_bv=self.max_bv, tol=c.tol)
+        return SparseOnlineGP(kernel, noise=c.noise, max_bv=self.max_bv, tol=c.tol)
 
     # ------------------------------------------------------------------ inputs
     def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray:

@@ -3,7 +3,8 @@
 
 On agents saved at each checkpoint by ``research/checkpoint_actors.py --save DIR``,
 prints per checkpoint (medians over the stored transitions whose episode ended by a
-termination, where a return is known):
+termination, where a return is known; over every stored transition where no episode
+terminated, ``HalfCheetah-v5``'s, with ``MC`` then ``nan``):
 
 - ``MC``: the behaviour's discounted return from each transition to its episode's end;
 - ``eval``: the fixed point of ``y = r + gamma Q_y(s', a')`` with ``a'`` the action taken
@@ -128,7 +129,9 @@ def main() -> None:
         evaluated = _policy_evaluation(agent, stored, next_actions)
         targets = agent.buffer.targets(last=len(stored))
         q0, g0 = _greedy_levels(agent, args.env, args.seed)
-        mc, ev, tg = (float(np.median(v[known])) for v in (G, evaluated, targets))
+        over = known if known.any() else np.ones_like(known)  # no termination: all of them
+        mc = float(np.median(G[known])) if known.any() else float("nan")
+        ev, tg = (float(np.median(v[over])) for v in (evaluated, targets))
         print(
             f"{path.stem.split('_')[-1]} | {mc:.1f} | {ev:.1f} | {tg:.1f}"
             f" | {agent.value_bounds()[1]:.1f} | {q0:.1f} | {g0:.1f}  ({known.sum()} of"

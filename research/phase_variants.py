@@ -1,4 +1,4 @@
-"""One fitted-Q phase re-run on saved agents, another way (issue 46, part twenty-two).
+"""One fitted-Q phase re-run on saved agents, another way (issue 46, parts twenty-two, twenty-four).
 
 On agents saved at each checkpoint by ``research/checkpoint_actors.py --save DIR``,
 prints per checkpoint the stored targets' median and ``Q``'s greedy return (10
@@ -13,6 +13,11 @@ before and after one phase run as ``--variant`` says:
   from the even and the odd episodes, every target ``r + gamma min(Q_A, Q_B)(s', a*)``
   at the candidate ``a*`` best by their mean, swept up to ``--max-sweeps`` times; the
   agent is then refit to those targets.
+- ``pessimism``: lower-confidence targets ``r + gamma max_k (Q - beta std)(s', a_k)``,
+  ``std`` ``Q``'s posterior std at each next state x candidate (in the targets' standard
+  units; it does not depend on the targets, so it is computed once), ``beta`` from
+  ``--beta``, swept up to ``--max-sweeps`` times; the agent is then refit to them
+  (part twenty-four).
 
 ::
 
@@ -68,13 +73,51 @@ def _twins(agent: Any, max_sweeps: int) -> tuple[int, float]:
     return sweeps, change
 
 
+def _pessimism(agent: Any, beta: float, max_sweeps: int) -> tuple[int, float]:
+    """Lower-confidence targets ``r + gamma max_k (Q - beta std)(s', a_k)`` on the agent's
+    basis, with the posterior std of ``Q`` (fixed within a phase: it does not depend on
+    the targets) at every next state x candidate; the agent is then refit to them."""
+    from geoq.agents.fitted_q import standardisation
+
+    stored = agent.buffer.transitions(last=agent.config.window)
+    N, inp, gp = len(stored), agent._phase_inputs(stored), agent.gp
+    system = gp.projected_system(inp.inputs(stored))
+    y_mean, y_scale, (lo, hi) = inp.y_mean, inp.y_scale, inp.bounds
+    gp.refit_projected(system, (inp.targets - y_mean) / y_scale)  # the std on this data
+    cands = inp.candidates
+    std = np.empty((N, cands.shape[0]))
+    for k in range(cands.shape[0]):
+        X = inp.scaling.transform_pairs(stored.next_states, cands[k : k + 1])
+        std[:, k] = gp.predict(X, return_std=True)[1]
+    K_next, slots = agent.phase.next_state_covariances(inp, stored.next_states, N)
+    gamma, continues = agent.config.gamma, 1.0 - stored.terminated.astype(np.float64)
+    y, change, sweeps = inp.targets.copy(), np.inf, 0
+    weights = np.zeros(K_next.n_columns)
+    while sweeps < max_sweeps and change > agent.config.sweep_tol * y_scale:
+        weights[slots] = system.mean_weights((y - y_mean) / y_scale)
+        value = np.max(K_next.q(weights) - beta * std, axis=1)
+        y_new = np.clip(stored.rewards + gamma * continues * (y_mean + y_scale * value), lo, hi)
+        change, y, sweeps = float(np.max(np.abs(y_new - y))), y_new, sweeps + 1
+    print(
+        f"  std: median {np.median(std):.3f}, of the smallest per next state "
+        f"{np.median(np.min(std, axis=1)):.3f}",
+        flush=True,
+    )
+    mean, scale = standardisation(y, inp.bounds, agent.config.prior)
+    gp.refit_projected(system, (y - mean) / scale)
+    agent.buffer.set_targets(y)
+    agent.state.y_mean, agent.state.y_scale = mean, scale
+    return sweeps, change
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("env", help="Gymnasium id (or module:id)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--load", type=Path, required=True, help="checkpoint_actors' --save")
-    parser.add_argument("--variant", choices=("converge", "twins"), required=True)
+    parser.add_argument("--variant", choices=("converge", "twins", "pessimism"), required=True)
     parser.add_argument("--max-sweeps", type=int, default=1000)
+    parser.add_argument("--beta", type=float, default=1.0, help="pessimism's std multiple")
     args = parser.parse_args()
 
     from geoq.agents import GPQAgent
@@ -94,6 +137,8 @@ def main() -> None:
         before, g_before = np.median(agent.buffer.targets()), greedy()
         if args.variant == "twins":
             sweeps, change = _twins(agent, args.max_sweeps)
+        elif args.variant == "pessimism":
+            sweeps, change = _pessimism(agent, args.beta, args.max_sweeps)
         else:
             sweeps = agent._train()
             change = agent.log.fitted_q_residuals[-1]

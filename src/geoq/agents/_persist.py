@@ -4,7 +4,8 @@ Arrays: ``gp/*`` (the sparse GP), ``buffer/*`` (the transitions and their
 targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``,
 ``covariances/*`` (the fitted-Q phases' column order, optional), ``explorer/*``
 (the exploration map, :mod:`geoq.agents.map_explorer`; optional), ``model/*`` (the
-dynamics model and plans, :mod:`geoq.agents.model_planning`; with a planner); ``meta``
+dynamics model and plans, :mod:`geoq.agents.model_planning`; with a planner), ``actor/*``
+(the policy trained on ``Q``, :mod:`geoq.agents.q_actor`; once it has weights); ``meta``
 is JSON (config, scaling, env id, seed, generator state, standardisation,
 counters). Optional meta keys added after version 1 default to a fresh agent's
 values, so older files load.
@@ -89,6 +90,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
     arrays.update({f"covariances/{k}": v for k, v in slots.items()})
     arrays.update({f"explorer/{k}": v for k, v in agent.explorer.to_arrays().items()})
     arrays.update({f"model/{k}": v for k, v in agent.planning.to_arrays().items()})
+    arrays.update({f"actor/{k}": v for k, v in agent.actor.to_arrays().items()})
     save_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION, arrays)
 
 
@@ -158,6 +160,7 @@ def load_agent(
         _check_explorer(config, agent.explorer)
         agent.planning.restore({k[6:]: v for k, v in a.items() if k.startswith("model/")},
                                str(path))  # fmt: skip
+        agent.actor.restore({k[6:]: v for k, v in a.items() if k.startswith("actor/")}, obs_dim)
     except (KeyError, ValueError, TypeError) as exc:
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent.env = None

@@ -22,6 +22,7 @@ from geoq._validation import (
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
 from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions, resolve_greedy_actions
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
+from geoq.agents.q_actor import ACTORS, Actor
 from geoq.agents.state import LearningState, as_range, check_value_bounds, value_bounds
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import KERNEL_NAMES, Kernel, KernelName, make_kernel
@@ -241,6 +242,11 @@ class GPQConfig:
     policy_horizon: int | None = None
     """Model steps a ``policy`` or ``policy-net`` search scores its policies over (undiscounted);
     None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (1,000 without one)."""
+    actor: Actor = "off"
+    """``on``: a policy trained on ``Q``'s posterior mean (DDPG's actor,
+    :mod:`geoq.agents.q_actor`) acts where ``Q`` would, its training actions its own plus
+    ``action_noise`` half-ranges of noise; ``off``: none. A map's or a planner's policy
+    comes first."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -253,7 +259,7 @@ class GPQConfig:
             ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
             ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
             ("explore_map", EXPLORE_MAP_MODES), ("planner", PLANNERS),
-            ("greedy_actions", GREEDY_ACTIONS),
+            ("greedy_actions", GREEDY_ACTIONS), ("actor", ACTORS),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")

@@ -39,13 +39,13 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    actions, and the greedy ones where it knows a route to a termination.
 7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`, where
    every discounted return lies (without it regression + max diverged).
-8. **Planning** (``planner``): acting through a GP model (:mod:`~geoq.agents.model_planning`).
+8. **Planning** (``planner``): acting through a GP model (:mod:`~geoq.agents.model_planning`);
+   or (``actor``) a policy trained on ``Q``'s mean (:mod:`~geoq.agents.q_actor`).
 
-``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`).
-
-**Threads.** A learning step (an env step, its phase, an episode's callback) holds the
-agent's re-entrant lock, as do ``predict``, ``q_candidates``, ``q_mean``, ``train``, ``save``,
-``set_env``. ``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
+**Threads.** ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`). A learning
+step (an env step, its phase, an episode's callback) holds the agent's re-entrant lock, as
+do ``predict``, ``q_candidates``, ``q_mean``, ``train``, ``save``, ``set_env``.
+``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
 """
 
 from __future__ import annotations
@@ -72,6 +72,8 @@ from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
 from geoq.agents.greedy_data import act_in_data
 from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.model_planning import ModelPlanning
+from geoq.agents.phase_inputs import phase_inputs_of
+from geoq.agents.q_actor import QActor
 from geoq.agents.replay import replay_strategy
 from geoq.agents.state import LearningState, TrainingLog, as_range, check_target
 from geoq.gp import SparseOnlineGP
@@ -176,6 +178,7 @@ class GPQAgent:
         self.explorer = MapExplorer(config.explore_map, candidates, self.action_low,
                                     self.action_high, config.gamma)  # fmt: skip
         self.planning = ModelPlanning(config, obs_dim, self.action_low, self.action_high)
+        self.actor = QActor(config.actor, self.action_low, self.action_high)
 
     @property
     def max_bv(self) -> int:
@@ -231,9 +234,9 @@ class GPQAgent:
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[FloatArray, None]:
         """The action ``[d_a]`` (or ``[n, d_a]`` for ``n`` observations) and ``None``.
 
-        ``deterministic=True``: the greedy action (the posterior mean's best, or the plan's);
-        otherwise the configured exploration (drawing from the agent's generator). Before
-        the warm-up has fixed a data-driven input scaling: the warm-up's policy."""
+        ``deterministic=True``: the greedy action (the posterior mean's best, the plan's or the
+        actor's); otherwise the configured exploration (drawing from the agent's generator).
+        Before the warm-up has fixed a data-driven input scaling: the warm-up's policy."""
         if not isinstance(deterministic, bool | np.bool_):
             raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
         with self._lock:  # between two learning steps of another thread
@@ -246,6 +249,8 @@ class GPQAgent:
             actions = self._act(S, mean, std, greedy=deterministic)
             if deterministic and self.planning.greedy_active:
                 actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
+            elif deterministic and self.actor.ready:
+                actions = self.actor.act(S)
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None
 
@@ -260,7 +265,8 @@ class GPQAgent:
 
     def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
         """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one, else
-        uniformly random during the warm-up, else planned, else by ``exploration``."""
+        uniformly random during the warm-up, else planned, else the actor's, else by
+        ``exploration``."""
         a = self.explorer.action(s, self.rng)
         if a is not None:
             return a
@@ -268,6 +274,8 @@ class GPQAgent:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
         if self.planning.active:
             return self.planning.action(self, s, self.rng)
+        if self.actor.ready:
+            return self.actor.explore(s, self.config.action_noise, self.rng)
         return self._act(s, *q, greedy=False)
 
     def _obs_scale(self) -> FloatArray:
@@ -293,8 +301,7 @@ class GPQAgent:
         agent continues exactly as the original would; an episode cut short is not recorded.
         A step the env answers wrongly (:func:`~geoq.agents._env.env_step`) raises a
         ``ValueError`` and is not taken (the agent stays as after the step before).
-        ``learn(0)`` changes nothing. Other threads may predict meanwhile (module docstring).
-        """
+        ``learn(0)`` changes nothing. Other threads may predict meanwhile (module docstring)."""
         check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
         if env is None:
@@ -454,20 +461,12 @@ class GPQAgent:
         st.y_mean, st.y_scale = result.y_mean, result.y_scale
         log.fitted_q_sweeps.append(result.sweeps)
         log.fitted_q_residuals.append(result.residual)
+        self.actor.train(stored.states, self.gp, self.scaling, self.rng)
         return result.sweeps
 
     def _phase_inputs(self, stored: Transitions) -> PhaseInputs:
         """What a phase on ``stored`` (the window's transitions) reads of the agent."""
-        bounds = self.value_bounds()
-        low, high = _env.observation_box(self.env)
-        lengthscale = np.asarray(self._lengthscale(), dtype=np.float64)
-        return PhaseInputs(
-            gp=self.gp, stored=stored, n_seen=len(self.buffer), bounds=bounds,
-            targets=np.clip(self.buffer.targets(last=len(stored)), *bounds),  # warm start
-            scaling=self.scaling, candidates=self.candidates, obs_dim=self.obs_dim,
-            lengthscale=np.broadcast_to(lengthscale, (self.scaling.dim,)),
-            obs_low=low, obs_high=high, y_mean=self.state.y_mean, y_scale=self.state.y_scale,
-        )  # fmt: skip
+        return phase_inputs_of(self, stored, _env.observation_box(self.env))
 
     # ------------------------------------------------------------------ persistence
     def save(self, path: str | PathLike[str]) -> None:
@@ -495,6 +494,5 @@ class GPQAgent:
         self.__dict__.update(state, _lock=threading.RLock())
 
     def __repr__(self) -> str:
-        c = self.config
-        return (f"GPQAgent(env={self.env_id or '?'}, kernel={c.kernel!r}, max_bv={c.max_bv}, "
-                f"timesteps={self.num_timesteps})")  # fmt: skip
+        return (f"GPQAgent(env={self.env_id or '?'}, kernel={self.config.kernel!r}, "
+                f"max_bv={self.max_bv}, timesteps={self.num_timesteps})")  # fmt: skip

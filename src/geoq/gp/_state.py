@@ -113,6 +113,12 @@ class OnlineGPState:
         return self._mu[:m].copy(), self._S[:m, :m].copy()
 
     @property
+    def features_repaired(self) -> bool:
+        """Whether online updates since the last refit rescaled features (negative novelty):
+        predictions then use the repaired feature map, and the mean is not ``k_x^T alpha``."""
+        return self._counts.features_repaired
+
+    @property
     def diagnostics(self) -> OnlineDiagnostics:
         """A snapshot of the counters (see :class:`OnlineDiagnostics`)."""
         return self._counts.snapshot()

@@ -130,6 +130,11 @@ def test_a_bad_actor_setting_or_archive_is_refused(tmp_path: Path) -> None:
     np.savez(tmp_path / "short.npz", **arrays)
     with pytest.raises(ArchiveError, match="actor's weights"):
         GPQAgent.load(tmp_path / "short.npz")
+    arrays["actor/params"] = np.zeros(len(arrays["actor/adam_m"]))
+    arrays["actor/adam_v"] = -arrays["actor/adam_v"] - 1.0  # would be NaN weights, silently
+    np.savez(tmp_path / "negative.npz", **arrays)
+    with pytest.raises(ArchiveError, match="Adam state"):
+        GPQAgent.load(tmp_path / "negative.npz")
 
 
 def test_a_graph_kernel_agent_climbs_by_central_differences() -> None:

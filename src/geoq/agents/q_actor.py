@@ -179,5 +179,7 @@ class QActor:
         arrays = [np.asarray(a[k], dtype=np.float64) for k in ("params", "adam_m", "adam_v")]
         if any(x.shape != (policy.n_params,) or not np.all(np.isfinite(x)) for x in arrays):
             raise ValueError(f"the actor's weights must be {policy.n_params} finite numbers")
-        self.policy, (self.params, self.m, self.v) = policy, arrays
-        self.t = int(a["adam_t"])
+        t = int(a["adam_t"])
+        if t < 0 or np.any(arrays[2] < 0.0):  # Adam's step divides by sqrt(v / (1 - 0.999^t))
+            raise ValueError(f"the actor's Adam state must have t >= 0 and v >= 0, got t = {t}")
+        self.policy, (self.params, self.m, self.v), self.t = policy, arrays, t

@@ -4,10 +4,12 @@ and the agent with it (same seed, same curve; save and load continue identically
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.agents._tasks import PointToGoalWithDistractors
 
 from geoq._io import ArchiveError
 from geoq.agents import GPQAgent, GPQConfig
@@ -15,20 +17,22 @@ from geoq.agents.q_actor import (
     QActor,
     central_gradient,
     closed_form_gradient,
+    curves_inside,
     mean_action_gradient,
 )
 from geoq.gp import SparseOnlineGP
-from geoq.kernels import SquaredExponential
+from geoq.kernels import SquaredExponential, make_kernel
 from geoq.learners.scaling import InputScaling
 
 LOW, HIGH = np.array([-2.0, -1.0]), np.array([2.0, 1.0])
 SCALING = InputScaling((1.5, 0.7, 2.0, 1.0), (0.0,) * 4, ("s0", "s1", "a0", "a1"))
 
 
-def _gp(rng: np.random.Generator, target) -> SparseOnlineGP:  # type: ignore[no-untyped-def]
-    """A GP of ``target(S, A)`` from 300 random pairs in ``[-1, 1]^2 x [LOW, HIGH]``."""
+def _gp(rng: np.random.Generator, target, lengthscale=(0.8, 1.1, 0.6, 0.9)) -> SparseOnlineGP:  # type: ignore[no-untyped-def]
+    """A GP of ``target(S, A)`` from 300 random pairs in ``[-1, 1]^2 x [LOW, HIGH]``, of
+    scaled ``lengthscale`` [4]."""
     S, A = rng.uniform(-1, 1, (300, 2)), rng.uniform(LOW, HIGH, (300, 2))
-    gp = SparseOnlineGP(SquaredExponential(lengthscale=[0.8, 1.1, 0.6, 0.9]), noise=1e-3,
+    gp = SparseOnlineGP(SquaredExponential(lengthscale=list(lengthscale)), noise=1e-3,
                         max_bv=120)  # fmt: skip
     X = SCALING.transform(np.hstack([S, A]))
     y = target(S, A)
@@ -94,6 +98,48 @@ def test_off_trains_nothing_and_saves_nothing() -> None:
     assert not actor.ready and actor.to_arrays() == {}
 
 
+def test_curved_acts_only_where_q_can_turn_inside_the_box() -> None:
+    """The box's sides in scaled units are (4 / 2, 2 / 1) = (2, 2): action length-scales of
+    at most 2 pass the gate. A curved actor is ``on``'s bit for bit where they do; where one
+    does not it is idle: no draw from the generator, no training, not acting; its flag is
+    saved and restored with it."""
+    width = HIGH - LOW
+    target = lambda S, A: -((A - 0.3 * S) ** 2).sum(axis=1)  # noqa: E731
+    rng = np.random.default_rng(4)
+    turns, flat = _gp(rng, target, (0.8, 1.1, 2.0, 2.0)), _gp(rng, target, (0.8, 1.1, 2.0, 2.01))
+    assert curves_inside(turns, SCALING, width) and not curves_inside(flat, SCALING, width)
+    states = rng.uniform(-1, 1, (100, 2))
+    curved, on = QActor("curved", LOW, HIGH), QActor("on", LOW, HIGH)
+    before = np.random.default_rng(5).bit_generator.state
+    draws = np.random.default_rng(5)
+    curved.train(states, flat, SCALING, draws)
+    assert not curved.ready and curved.to_arrays() == {} and draws.bit_generator.state == before
+    curved.train(states, turns, SCALING, np.random.default_rng(6))
+    on.train(states, turns, SCALING, np.random.default_rng(6))
+    assert curved.ready
+    np.testing.assert_array_equal(curved.params, on.params)
+    curved.train(states, flat, SCALING, draws)  # weights kept, idle
+    assert not curved.ready and draws.bit_generator.state == before
+    saved = curved.to_arrays()
+    restored = QActor("curved", LOW, HIGH)
+    restored.restore(saved, 2)
+    assert not restored.ready
+    np.testing.assert_array_equal(restored.params, curved.params)
+    restored.restore({**saved, "active": np.bool_(True)}, 2)
+    assert restored.ready
+    with pytest.raises(ValueError, match="active flag"):
+        restored.restore({**saved, "active": np.array([1.0, 0.0])}, 2)
+    nearest = SparseOnlineGP(make_kernel("nearest"), noise=1e-2, max_bv=10)
+    assert not curves_inside(nearest, SCALING, width)  # no length-scales to read
+
+
+def test_auto_is_off_where_q_alone_learns_and_curved_elsewhere() -> None:
+    assert GPQConfig().for_dims(3, 1).actor == "off"  # Pendulum-v1's inputs
+    assert GPQConfig().for_dims(11, 3).actor == "curved"  # Hopper-v5's
+    assert GPQConfig(actor="on").for_dims(3, 1).actor == "on"
+    assert GPQConfig(actor="off").for_dims(11, 3).actor == "off"
+
+
 def test_the_agent_with_an_actor_repeats_and_continues_identically(tmp_path: Path) -> None:
     """Same seed, same curve; saved mid-run and loaded, the rest of the run is the
     original's bit for bit (actor and GP); greedy actions are the actor's."""
@@ -146,3 +192,20 @@ def test_a_graph_kernel_agent_climbs_by_central_differences() -> None:
     se = GPQAgent("Pendulum-v1", seed=0, actor="on", explore_map="off", max_bv=40).learn(300)
     route = se.actor._gradient(se.gp, se.scaling, se.obs_dim)
     assert route.__qualname__.startswith("closed_form_gradient")
+
+
+def test_files_from_before_the_actor_keep_acting_without_one(tmp_path: Path) -> None:
+    """A file whose config has no ``actor`` (saved before it) loads with ``off``, where a new
+    agent of its task resolves ``auto`` to ``curved``."""
+    env = PointToGoalWithDistractors(extra=4)  # 5 + 1 inputs: the rule cannot cover them
+    agent = GPQAgent(env, seed=0, max_bv=20).learn(40)
+    assert agent.config.actor == "curved"
+    agent.save(tmp_path / "agent.npz")
+    with np.load(tmp_path / "agent.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files if not k.startswith("actor/")}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["config"]["actor"]
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez(tmp_path / "old.npz", **arrays)
+    loaded = GPQAgent.load(tmp_path / "old.npz", env=PointToGoalWithDistractors(extra=4))
+    assert loaded.config.actor == "off" and not loaded.actor.ready

@@ -242,11 +242,14 @@ class GPQConfig:
     policy_horizon: int | None = None
     """Model steps a ``policy`` or ``policy-net`` search scores its policies over (undiscounted);
     None: the task's time limit, at most :data:`POLICY_HORIZON_CAP` (1,000 without one)."""
-    actor: Actor = "off"
+    actor: Actor = "auto"
     """``on``: a policy trained on ``Q``'s posterior mean (DDPG's actor,
     :mod:`geoq.agents.q_actor`) acts where ``Q`` would, its training actions its own plus
-    ``action_noise`` half-ranges of noise; ``off``: none. A map's or a planner's policy
-    comes first."""
+    ``action_noise`` half-ranges of noise; ``curved``: the same, in the phases where ``Q``
+    can turn inside the action box (every action length-scale at most the box's side;
+    :func:`~geoq.agents.q_actor.curves_inside`); ``off``: none; ``auto`` (resolved by
+    :meth:`for_dims`, as ``planner``'s): ``off`` on the tasks ``Q`` alone learns,
+    ``curved`` elsewhere. A map's or a planner's policy comes first."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -318,8 +321,8 @@ class GPQConfig:
         (and episodes of at most ``time_limit`` steps, None: unknown): ``max_bv`` resolved
         (:func:`default_max_bv`), ``policy_horizon`` resolved from ``time_limit`` (capped
         at :data:`POLICY_HORIZON_CAP`), ``lengthscale``'s length checked, and
-        ``greedy_actions`` (:func:`resolve_greedy_actions`), ``hyperparameters``, ``prior``
-        and ``planner`` resolved where ``auto``: by whether
+        ``greedy_actions`` (:func:`resolve_greedy_actions`), ``hyperparameters``, ``prior``,
+        ``planner`` and ``actor`` resolved where ``auto``: by whether
         the rule's length-scales let the dimension's default budget cover the input box
         (:func:`rule_coverage`; the default's, so that a smaller ``max_bv``, chosen for
         speed, does not change how the agent learns); ``hyperparameters`` to ``rule``
@@ -341,13 +344,16 @@ class GPQConfig:
             hyperparameters = "rule" if rule_kept else "evidence"
         if prior == "auto":
             prior = "optimistic" if covered else "empirical"
-        planner = self.planner
+        planner, actor = self.planner, self.actor
         if planner == "auto":
             planner = "off" if covered else "policy-net"
+        if actor == "auto":
+            actor = "off" if covered else "curved"
         horizon = self.policy_horizon or min(time_limit or POLICY_HORIZON_CAP, POLICY_HORIZON_CAP)
         greedy = resolve_greedy_actions(self.greedy_actions, action_dim)
         return replace(self, max_bv=max_bv, hyperparameters=hyperparameters, prior=prior,
-                       planner=planner, policy_horizon=horizon, greedy_actions=greedy)  # fmt: skip
+                       planner=planner, policy_horizon=horizon, greedy_actions=greedy,
+                       actor=actor)  # fmt: skip
 
     def lengthscales_given(self) -> bool:
         """Whether the user chose the squared exponential's length-scales: ``lengthscale``

@@ -15,8 +15,16 @@ actions are its own plus Gaussian noise of ``config.action_noise`` half-ranges (
 exploration, Fujimoto et al. 2018), clipped to the box, and greedy actions its own. It then
 takes actions ``Q`` has not seen; where ``Q`` rises along a direction its data do not pin
 down (nearly linear along the actions, as on ``HalfCheetah-v5``), the actor follows it to
-the box's corners (docs/design-notes.md, part twenty-five). Draws (initial weights,
-batches, noise) come from the agent's generator.
+the box's corners (docs/design-notes.md, part twenty-five).
+
+``curved``: as ``on``, in the phases where ``Q`` can turn inside the action box: where every
+action length-scale of its squared exponential (evidence-fitted) is at most the box's side
+along that action (:func:`curves_inside`). A ``Q`` whose length-scales pass the box is close
+to linear across it, its maximum a corner whatever the data say; there the actor is idle (no
+training, no draws) and ``Q`` acts as with ``off``. ``auto`` resolves (``GPQConfig.for_dims``)
+to ``off`` on the tasks ``Q`` alone learns, ``curved`` elsewhere.
+
+Draws (initial weights, batches, noise) come from the agent's generator.
 """
 
 from __future__ import annotations
@@ -34,11 +42,11 @@ from geoq.models import MLPFeedback
 
 __all__ = [
     "ACTORS", "BATCH", "STEPS", "QActor", "central_gradient", "closed_form_gradient",
-    "mean_action_gradient",
+    "curves_inside", "mean_action_gradient",
 ]  # fmt: skip
 
-Actor = Literal["off", "on"]
-ACTORS: tuple[str, ...] = ("off", "on")
+Actor = Literal["off", "on", "curved", "auto"]
+ACTORS: tuple[str, ...] = ("off", "on", "curved", "auto")
 
 #: ``Q``'s action gradient ``[n, d_a]`` at raw states ``[n, d_s]`` and actions ``[n, d_a]``.
 ActionGradient = Callable[[FloatArray, FloatArray], FloatArray]
@@ -94,6 +102,18 @@ def central_gradient(gp: SparseOnlineGP, scaling: InputScaling, h: float) -> Act
     return gradient
 
 
+def curves_inside(gp: SparseOnlineGP, scaling: InputScaling, width: FloatArray) -> bool:
+    """Whether ``gp``'s kernel is a squared exponential whose every action length-scale (the
+    inputs after the states, scaled) is at most the action box's side ``width`` [d_a] (raw
+    units) along it: ``Q``'s mean can then have a maximum inside the box."""
+    kernel = gp.kernel
+    if not isinstance(kernel, SquaredExponential):
+        return False
+    d_a = width.shape[0]
+    lengthscale = np.broadcast_to(np.asarray(kernel.lengthscale), (scaling.dim,))[-d_a:]
+    return bool(np.all(lengthscale <= width / np.asarray(scaling.scale)[-d_a:]))
+
+
 class QActor:
     """The actor of ``mode`` (module docstring) for actions in ``[low, high]`` ``[d_a]``."""
 
@@ -102,11 +122,13 @@ class QActor:
         self.policy: MLPFeedback | None = None
         self.params = self.m = self.v = np.zeros(0)
         self.t = 0  # Adam steps taken
+        self.active = mode == "on"  # curved: whether the last phase's Q curves inside the box
 
     @property
     def ready(self) -> bool:
-        """Whether the actor has weights (after the first phase with data): it acts then."""
-        return self.policy is not None
+        """Whether the actor acts: it has weights (after the first phase with data) and, in
+        ``curved`` mode, the last phase's ``Q`` curves inside the box."""
+        return self.policy is not None and self.active
 
     def act(self, S: FloatArray) -> FloatArray:
         """The actor's actions ``[n, d_a]`` at states ``[n, d_s]``."""
@@ -124,9 +146,14 @@ class QActor:
     def train(self, states: FloatArray, gp: SparseOnlineGP, scaling: InputScaling,
               rng: np.random.Generator) -> None:  # fmt: skip
         """:data:`STEPS` Adam steps up the mean of ``Q(s, pi(s))`` over batches of ``states``
-        ``[n, d_s]`` (the window's), ``Q`` the posterior mean of ``gp`` (scaled inputs)."""
+        ``[n, d_s]`` (the window's), ``Q`` the posterior mean of ``gp`` (scaled inputs); in
+        ``curved`` mode only where :func:`curves_inside` (else the actor is idle)."""
         if self.mode == "off" or len(states) == 0 or gp.n_bv == 0:
             return
+        if self.mode == "curved":
+            self.active = curves_inside(gp, scaling, self.high - self.low)
+            if not self.active:
+                return
         if self.policy is None:
             center, spread = states.mean(axis=0), np.maximum(states.std(axis=0), 1e-6)
             self.policy = MLPFeedback(self.low, self.high, center, spread, hidden=HIDDEN)
@@ -162,7 +189,8 @@ class QActor:
         if self.policy is None:
             return {}
         return {"center": self.policy.center, "scale": self.policy.scale, "params": self.params,
-                "adam_m": self.m, "adam_v": self.v, "adam_t": np.int64(self.t)}  # fmt: skip
+                "adam_m": self.m, "adam_v": self.v, "adam_t": np.int64(self.t),
+                "active": np.bool_(self.active)}  # fmt: skip
 
     def restore(self, a: dict[str, Any], obs_dim: int) -> None:
         """Inverse of :meth:`to_arrays`; ``ValueError`` where it does not fit this actor."""
@@ -183,3 +211,7 @@ class QActor:
         if t < 0 or np.any(arrays[2] < 0.0):  # Adam's step divides by sqrt(v / (1 - 0.999^t))
             raise ValueError(f"the actor's Adam state must have t >= 0 and v >= 0, got t = {t}")
         self.policy, (self.params, self.m, self.v), self.t = policy, arrays, t
+        active = np.asarray(a.get("active", True))  # files before curved: on's, always active
+        if active.shape != () or active.dtype != np.bool_:
+            raise ValueError(f"the actor's active flag must be one boolean, got {active!r}")
+        self.active = self.mode == "on" or bool(active)

@@ -101,7 +101,7 @@ def test_off_trains_nothing_and_saves_nothing() -> None:
 def test_curved_acts_only_where_q_can_turn_inside_the_box() -> None:
     """The box's sides in scaled units are (4 / 2, 2 / 1) = (2, 2): action length-scales of
     at most 2 pass the gate. A curved actor is ``on``'s bit for bit where they do; where one
-    does not it is idle: no draw from the generator, no training, not acting; its flag is
+    does not, or they are not measured yet, it is idle: no draw from the generator, no training, not acting; its flag is
     saved and restored with it."""
     width = HIGH - LOW
     target = lambda S, A: -((A - 0.3 * S) ** 2).sum(axis=1)  # noqa: E731
@@ -114,6 +114,8 @@ def test_curved_acts_only_where_q_can_turn_inside_the_box() -> None:
     draws = np.random.default_rng(5)
     curved.train(states, flat, SCALING, draws)
     assert not curved.ready and curved.to_arrays() == {} and draws.bit_generator.state == before
+    curved.train(states, turns, SCALING, draws, measured=False)  # the rule's, before a fit
+    assert not curved.ready and draws.bit_generator.state == before
     curved.train(states, turns, SCALING, np.random.default_rng(6))
     on.train(states, turns, SCALING, np.random.default_rng(6))
     assert curved.ready

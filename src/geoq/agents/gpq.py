@@ -461,7 +461,8 @@ class GPQAgent:
         st.y_mean, st.y_scale = result.y_mean, result.y_scale
         log.fitted_q_sweeps.append(result.sweeps)
         log.fitted_q_residuals.append(result.residual)
-        self.actor.train(stored.states, self.gp, self.scaling, self.rng)
+        measured = self.config.hyperparameters != "evidence" or st.fitted_lengthscale is not None
+        self.actor.train(stored.states, self.gp, self.scaling, self.rng, measured)
         return result.sweeps
 
     def _phase_inputs(self, stored: Transitions) -> PhaseInputs:

@@ -18,8 +18,9 @@ down (nearly linear along the actions, as on ``HalfCheetah-v5``), the actor foll
 the box's corners (docs/design-notes.md, part twenty-five).
 
 ``curved``: as ``on``, in the phases where ``Q`` can turn inside the action box: where every
-action length-scale of its squared exponential (evidence-fitted) is at most the box's side
-along that action (:func:`curves_inside`). A ``Q`` whose length-scales pass the box is close
+action length-scale of its squared exponential is at most the box's side along that action
+(:func:`curves_inside`), the length-scales measured (fitted by evidence, or chosen; not the
+rule's starting values before the first fit). A ``Q`` whose length-scales pass the box is close
 to linear across it, its maximum a corner whatever the data say; there the actor is idle (no
 training, no draws) and ``Q`` acts as with ``off``. ``auto`` resolves (``GPQConfig.for_dims``)
 to ``off`` on the tasks ``Q`` alone learns, ``curved`` elsewhere.
@@ -144,14 +145,15 @@ class QActor:
 
     # ------------------------------------------------------------------ training
     def train(self, states: FloatArray, gp: SparseOnlineGP, scaling: InputScaling,
-              rng: np.random.Generator) -> None:  # fmt: skip
+              rng: np.random.Generator, measured: bool = True) -> None:  # fmt: skip
         """:data:`STEPS` Adam steps up the mean of ``Q(s, pi(s))`` over batches of ``states``
         ``[n, d_s]`` (the window's), ``Q`` the posterior mean of ``gp`` (scaled inputs); in
-        ``curved`` mode only where :func:`curves_inside` (else the actor is idle)."""
+        ``curved`` mode only where ``gp``'s length-scales are ``measured`` and
+        :func:`curves_inside` (else the actor is idle)."""
         if self.mode == "off" or len(states) == 0 or gp.n_bv == 0:
             return
         if self.mode == "curved":
-            self.active = curves_inside(gp, scaling, self.high - self.low)
+            self.active = measured and curves_inside(gp, scaling, self.high - self.low)
             if not self.active:
                 return
         if self.policy is None:

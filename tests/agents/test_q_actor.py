@@ -101,8 +101,8 @@ def test_off_trains_nothing_and_saves_nothing() -> None:
 def test_curved_acts_only_where_q_can_turn_inside_the_box() -> None:
     """The box's sides in scaled units are (4 / 2, 2 / 1) = (2, 2): action length-scales of
     at most 2 pass the gate. A curved actor is ``on``'s bit for bit where they do; where one
-    does not, or they are not measured yet, it is idle: no draw from the generator, no training, not acting; its flag is
-    saved and restored with it."""
+    does not, or they are not measured yet, it is idle: no draw from the generator, no
+    training, not acting. Its flag is saved and restored with it."""
     width = HIGH - LOW
     target = lambda S, A: -((A - 0.3 * S) ** 2).sum(axis=1)  # noqa: E731
     rng = np.random.default_rng(4)

@@ -10,6 +10,10 @@ the route for the graph kernels, predicts at ``2 d_a`` points per state. Sizes:
 ``Walker2d-v5`` (17 + 6), each on a GP at the agent's budget of 800 basis vectors fitted
 to 3,000 random pairs; the time is one phase's 50 gradients (the Adam steps' own cost
 is the same for both and left out). The two agree to the central differences' accuracy.
+
+Then a greedy ``predict`` (one state a call) of an agent whose actor acts, against the
+same agent with its actor set idle (``Q``'s candidates act), in the same process:
+``Pendulum-v1`` with ``actor="on"`` (no optional extra needed), rounds of 300 states.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import time
 
 import numpy as np
 
+from geoq.agents import GPQAgent
 from geoq.agents.q_actor import BATCH, STEPS, central_gradient, closed_form_gradient
 from geoq.gp import SparseOnlineGP
 from geoq.kernels import SquaredExponential
@@ -46,6 +51,28 @@ def _seconds(gradient, S: np.ndarray, A: np.ndarray, steps: int) -> float:  # ty
     return time.perf_counter() - start
 
 
+def _predict_ms(agent: GPQAgent, states: np.ndarray, active: bool) -> float:
+    agent.actor.active = active
+    start = time.perf_counter()
+    for s in states:
+        agent.predict(s, deterministic=True)
+    return (time.perf_counter() - start) / len(states) * 1e3
+
+
+def _predict(quick: bool) -> None:
+    steps, n, rounds = (150, 20, 1) if quick else (1000, 300, 3)
+    agent = GPQAgent("Pendulum-v1", seed=0, actor="on", explore_map="off").learn(steps)
+    assert agent.actor.ready
+    rng = np.random.default_rng(0)
+    theta, speed = rng.uniform(-np.pi, np.pi, n), rng.uniform(-8, 8, n)
+    states = np.column_stack([np.cos(theta), np.sin(theta), speed])
+    print(f"greedy predict, one state a call, after {steps} steps ({agent.gp.n_bv} BVs)")
+    print(f"{'round':<8}{'actor ms':>10}{'candidates ms':>15}{'ratio':>8}")
+    for k in range(rounds):
+        actor, candidates = _predict_ms(agent, states, True), _predict_ms(agent, states, False)
+        print(f"{k:<8}{actor:>10.2f}{candidates:>15.2f}{actor / candidates:>8.2f}")
+
+
 def main(quick: bool = False) -> None:
     n, max_bv, steps = (300, 60, 2) if quick else (3000, 800, STEPS)
     print(f"one phase's {steps} action gradients at {BATCH} states, {max_bv} basis vectors")
@@ -61,6 +88,7 @@ def main(quick: bool = False) -> None:
         diff = float(np.max(np.abs(g - h)) / np.max(np.abs(g)))
         print(f"{label:<24}{t_closed:>15.3f}{t_central:>12.3f}{t_central / t_closed:>8.1f}"
               f"{diff:>15.1e}")  # fmt: skip
+    _predict(quick)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -236,6 +237,30 @@ def test_an_agent_learns_with_the_lengthscales_given(
     assert agent.config.hyperparameters == "rule" and agent.log.fitted_q_sweeps
     assert agent.log.evidence_fits == [] and agent.state.fitted_lengthscale is None
     np.testing.assert_array_equal(np.ravel(agent.gp.kernel.lengthscale), lengthscale)
+
+
+def test_evidence_fits_see_at_most_evidence_points(tmp_path: Path) -> None:
+    """Each fit draws at most ``evidence_points`` of the window, and fewer points move the
+    fit; a file saved before the option loads with 300, the number its code used."""
+    few, full = (GPQAgent(PointToGoalWithDistractors(extra=4), seed=0, max_bv=60, gamma=0.9,
+                          **kw).learn(300) for kw in ({"evidence_points": 40}, {}))  # fmt: skip
+    for agent, most in ((few, 40), (full, 300)):
+        fits = agent.log.evidence_fits
+        assert len(fits) >= 3 and fits[-1]["transitions"] > 40
+        assert [f["points"] for f in fits] == [min(most, f["transitions"]) for f in fits]
+    assert few.state.fitted_lengthscale != full.state.fitted_lengthscale
+    few.save(tmp_path / "agent.npz")
+    with np.load(tmp_path / "agent.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    meta = json.loads(str(arrays["meta"]))
+    del meta["config"]["evidence_points"]
+    arrays["meta"] = np.asarray(json.dumps(meta))
+    np.savez(tmp_path / "old.npz", **arrays)
+    old = GPQAgent.load(tmp_path / "old.npz", env=PointToGoalWithDistractors(extra=4))
+    assert old.config.evidence_points == 300
+    for bad in (1, 2001, 40.5, "many"):
+        with pytest.raises(ValueError, match="evidence_points"):
+            GPQConfig(evidence_points=bad)  # type: ignore[arg-type]
 
 
 def test_auto_with_long_lengthscales_or_a_graph_kernel_keeps_the_rule() -> None:

@@ -16,35 +16,31 @@ from geoq.gp.evidence import fit_squared_exponential
 from geoq.gp.numerics import NumericalWarning
 from geoq.learners.scaling import InputScaling
 
-__all__ = [
-    "EVIDENCE_POINTS", "EVIDENCE_RESTARTS", "EvidenceAgent", "fit_lengthscales",
-    "refit_lengthscales",
-]  # fmt: skip
+__all__ = ["EVIDENCE_RESTARTS", "EvidenceAgent", "fit_lengthscales", "refit_lengthscales"]
 
-#: Points of each fit (O(n^3) per evaluation) and its random restarts beyond the warm
-#: start (the length-scales in use).
-EVIDENCE_POINTS = 300
+#: Random restarts of each fit beyond the warm start (the length-scales in use).
 EVIDENCE_RESTARTS = 1
 
 
 def fit_lengthscales(
-    X: FloatArray, z: FloatArray, start: FloatArray, rng: np.random.Generator
+    X: FloatArray, z: FloatArray, start: FloatArray, rng: np.random.Generator, points: int
 ) -> tuple[tuple[float, ...], dict[str, Any]]:
     """ARD length-scales ``[d]`` fitted to inputs ``X`` ``[n, d]`` and standardised targets
-    ``z`` ``[n]`` (at most :data:`EVIDENCE_POINTS`, drawn with ``rng``), from ``start``
-    ``[d]`` plus :data:`EVIDENCE_RESTARTS` random starts; and the fit's record
-    (transitions, length-scales, log evidence, convergence, bounds reached, and the
+    ``z`` ``[n]`` (at most ``points`` of them, drawn with ``rng``), from ``start`` ``[d]``
+    plus :data:`EVIDENCE_RESTARTS` random starts; and the fit's record (transitions,
+    points used, length-scales, log evidence, convergence, bounds reached, and the
     :class:`NumericalWarning` the fit raised)."""
     d = X.shape[1]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", NumericalWarning)
         fit = fit_squared_exponential(
-            X, z, lengthscale0=start, ard=True, max_points=EVIDENCE_POINTS,
+            X, z, lengthscale0=start, ard=True, max_points=points,
             n_restarts=EVIDENCE_RESTARTS, rng=rng,
         )  # fmt: skip
     ls = tuple(float(v) for v in np.broadcast_to(fit.kernel.lengthscale, (d,)))
     record = {
-        "transitions": len(z), "lengthscale": list(ls), "log_evidence": fit.log_evidence,
+        "transitions": len(z), "points": fit.n_used, "lengthscale": list(ls),
+        "log_evidence": fit.log_evidence,
         "log_evidence_start": fit.log_evidence_start, "converged": fit.converged,
         "at_bound": list(fit.at_bound), "warnings": [str(w.message) for w in caught],
     }  # fmt: skip
@@ -69,8 +65,9 @@ class EvidenceAgent(Protocol):
 
 def refit_lengthscales(agent: EvidenceAgent) -> None:
     """``hyperparameters="evidence"``: ``agent``'s length-scales fitted to its window's
-    inputs and standardised targets (:func:`fit_lengthscales`, warm-started from those in
-    use); its GP is rebuilt with them, the fit recorded in its log."""
+    inputs and standardised targets (:func:`fit_lengthscales` on at most
+    ``config.evidence_points``, warm-started from those in use); its GP is rebuilt with
+    them, the fit recorded in its log."""
     c, st, buffer = agent.config, agent.state, agent.buffer
     stored = buffer.transitions(last=c.window)
     z = (buffer.targets(last=c.window) - st.y_mean) / st.y_scale
@@ -80,7 +77,8 @@ def refit_lengthscales(agent: EvidenceAgent) -> None:
         return  # equal targets say nothing about length-scales
     start = np.broadcast_to(np.asarray(agent._lengthscale(), dtype=np.float64), (d,))
     X = agent.inputs(stored.states, stored.actions)
-    ls, record = fit_lengthscales(X, z, start, np.random.default_rng(agent.rng.integers(2**32)))
+    rng = np.random.default_rng(agent.rng.integers(2**32))
+    ls, record = fit_lengthscales(X, z, start, rng, c.evidence_points)
     agent.log.evidence_fits.append(record)
     st.fitted_lengthscale = ls
     agent._restream()

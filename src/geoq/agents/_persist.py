@@ -48,12 +48,13 @@ _ARCHIVE_VERSION = 1
 
 #: Config fields a file written before them lacks, and the value its code behaved as:
 #: phases every ``train_every`` steps, length-scales by the rule, the candidates' greedy,
-#: no actor.
+#: no actor, evidence fits on 300 points.
 _LEGACY_CONFIG: dict[str, Any] = {
     "train_fraction": 0.0,
     "hyperparameters": "rule",
     "greedy_actions": "candidates",
     "actor": "off",
+    "evidence_points": 300,
 }
 
 #: The config field (or file entry) behind each of a kernel's saved hyper-parameters

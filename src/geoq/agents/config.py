@@ -37,6 +37,8 @@ __all__ = [
 #: is pure uncertainty sampling, past a million half-ranges the noise only hits the box's
 #: edges; beyond, products with the posterior std overflow.
 MAX_EXPLORATION = 1e6
+#: Largest ``evidence_points``: a fit holds ``8 d n^2`` bytes (0.74 GB at 23 inputs).
+MAX_EVIDENCE_POINTS = 2000
 #: Largest ``n_candidates``: each step asks the GP about this many inputs (16,384 x 800
 #: basis vectors = 100 MB per call).
 MAX_CANDIDATES = 16_384
@@ -108,8 +110,8 @@ class GPQConfig:
     """Where the squared-exponential length-scales come from. ``rule``: ``lengthscale``, or
     ``state_lengthscale`` / ``action_lengthscale``, fixed. ``evidence`` (``euclidean``
     only): re-fitted by maximum exact-GP evidence
-    (:func:`geoq.gp.evidence.fit_squared_exponential`, ARD, on at most 300 of the
-    stored inputs and their current standardised targets, warm-started from the
+    (:func:`geoq.gp.evidence.fit_squared_exponential`, ARD, on at most ``evidence_points``
+    of the stored inputs and their current standardised targets, warm-started from the
     length-scales in use; periodic inputs enter unwrapped) at the first
     fitted-Q phase and whenever the stored transitions have doubled since the last fit
     (250, 500, 1,000, ...: a few fits per run); the GP is then rebuilt from the stored
@@ -126,6 +128,14 @@ class GPQConfig:
     action, 3 and 2, and beyond: Gymnasium's MuJoCo tasks). On the swing-up the
     evidence's length-scales learned worse; on ``Reacher-v5`` (12 inputs) the rule's
     left every greedy state at the prior (docs/design-notes.md)."""
+    evidence_points: int = 300
+    """Most stored transitions an evidence fit sees (``hyperparameters="evidence"``), drawn
+    at random from the window, in ``[2, 2000]``. A fit costs ``O(n^3)`` per evaluation and
+    holds ``8 (d_s + d_a) n^2`` bytes (0.18 GB at 1,000 points and 23 inputs). The
+    evidence sees what an action changes only through pairs of points near in state and
+    apart in action: on ``Walker2d-v5`` (23 inputs) 300 points put some action
+    length-scales at the fit's bound (500 box sides), 1,000 points most at 1.5-5
+    (docs/design-notes.md)."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3
@@ -283,6 +293,7 @@ class GPQConfig:
         ):  # fmt: skip
             check_int(getattr(self, name), name, minimum)
         check_int(self.n_candidates, "n_candidates", 3, MAX_CANDIDATES)
+        check_int(self.evidence_points, "evidence_points", 2, MAX_EVIDENCE_POINTS)
         check_real(self.replay_eps, "replay_eps", low=0.0, high=1.0, low_open=True, high_open=True)
         check_real(self.gamma, "gamma", low=0.0, high=1.0, high_open=True)
         try:

@@ -169,11 +169,12 @@ class _Objective:
         self.X = X  # [N, d]
         self.y = y  # [N]
         self.config = config
-        diff2 = (X[:, None, :] - X[None, :, :]) ** 2  # [N, N, d]
-        if ard:
-            self.D2 = np.ascontiguousarray(np.moveaxis(diff2, 2, 0))  # [d, N, N]
+        if ard:  # one dimension at a time: no [N, N, d] intermediate beside the cache
+            self.D2 = np.empty((X.shape[1], X.shape[0], X.shape[0]))  # [d, N, N]
+            for k in range(X.shape[1]):
+                self.D2[k] = (X[:, None, k] - X[None, :, k]) ** 2
         else:
-            self.D2 = diff2.sum(axis=2)[None]  # [1, N, N]
+            self.D2 = ((X[:, None, :] - X[None, :, :]) ** 2).sum(axis=2)[None]  # [1, N, N]
 
     def __call__(self, theta: FloatArray) -> tuple[float, FloatArray]:
         n_ls = self.D2.shape[0]

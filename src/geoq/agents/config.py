@@ -134,7 +134,7 @@ class GPQConfig:
     holds ``8 (d_s + d_a) n^2`` bytes (0.18 GB at 1,000 points and 23 inputs). The
     evidence sees what an action changes only through pairs of points near in state and
     apart in action: on ``Walker2d-v5`` (23 inputs) 300 points put some action
-    length-scales at the fit's bound (500 box sides), 1,000 points most at 1.5-5
+    length-scales at the fit's bound (500 box sides), 1,000 points most at 1.2-5
     (docs/design-notes.md)."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""

@@ -6,8 +6,9 @@ part twenty-seven).
 targets. On each saved agent given (``research/checkpoint_actors.py --save DIR`` keeps
 them, or any ``GPQAgent.save`` file), this fits the same evidence
 (``fit_squared_exponential``, no restart, started from the median heuristic) to
-``--points`` random subsets of the agent's window, one per size, and prints per fit: the log evidence per point, the noise, each
-action length-scale over the action box's side (scaled; at most 1 opens the actor's gate,
+``--points`` random subsets of the agent's window, one per size, and prints per fit: the
+log evidence per point, the noise, each action length-scale over the action box's side
+(scaled; at most 1 opens the actor's gate,
 :func:`geoq.agents.q_actor.curves_inside`), the median state length-scale, and the fit's
 seconds::
 

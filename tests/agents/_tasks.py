@@ -67,6 +67,18 @@ class PointToGoalWithDistractors(PointToGoal):
         return np.concatenate([obs, self._distractors]), reward, terminated, truncated, info
 
 
+class PointToGoalWithIdleAction(PointToGoalWithDistractors):
+    """:class:`PointToGoalWithDistractors` with a second action that does nothing: ``Q``
+    is flat along it, so an evidence fit should leave its length-scale at the bound."""
+
+    def __init__(self, extra: int = 4) -> None:
+        super().__init__(extra)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float64)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        return super().step(np.asarray(action).reshape(2)[:1])
+
+
 def steps_to_goal(policy: Any, start: float, limit: int = 40) -> int:
     """Steps a policy ``obs -> action`` needs from ``start`` (``limit + 1`` if it never arrives)."""
     env = PointToGoal()

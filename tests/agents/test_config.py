@@ -11,10 +11,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from tests._fuzz import fuzz_settings
-from tests.agents._tasks import PointToGoal, PointToGoalWithDistractors
+from tests.agents._tasks import PointToGoal, PointToGoalWithDistractors, PointToGoalWithIdleAction
 
 import geoq  # noqa: F401  (registers the envs)
 from geoq.agents import GPQAgent, GPQConfig
+from geoq.agents._evidence import blind_actions
 from geoq.agents.config import default_max_bv, rule_coverage
 from geoq.agents.replay import GraphReplay, NoReplay, UniformReplay
 from geoq.agents.state import LearningState, TrainingLog
@@ -243,7 +244,8 @@ def test_evidence_fits_see_at_most_evidence_points(tmp_path: Path) -> None:
     """Each fit draws at most ``evidence_points`` of the window, and fewer points move the
     fit; a file saved before the option loads with 300, the number its code used."""
     few, full = (GPQAgent(PointToGoalWithDistractors(extra=4), seed=0, max_bv=60, gamma=0.9,
-                          **kw).learn(300) for kw in ({"evidence_points": 40}, {}))  # fmt: skip
+                          **kw).learn(300)
+                 for kw in ({"evidence_points": 40, "evidence_points_blind": 40}, {}))  # fmt: skip
     for agent, most in ((few, 40), (full, 300)):
         fits = agent.log.evidence_fits
         assert len(fits) >= 3 and fits[-1]["transitions"] > 40
@@ -253,14 +255,44 @@ def test_evidence_fits_see_at_most_evidence_points(tmp_path: Path) -> None:
     with np.load(tmp_path / "agent.npz", allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
     meta = json.loads(str(arrays["meta"]))
-    del meta["config"]["evidence_points"]
+    del meta["config"]["evidence_points"], meta["config"]["evidence_points_blind"]
     arrays["meta"] = np.asarray(json.dumps(meta))
     np.savez(tmp_path / "old.npz", **arrays)
     old = GPQAgent.load(tmp_path / "old.npz", env=PointToGoalWithDistractors(extra=4))
-    assert old.config.evidence_points == 300
-    for bad in (1, 2001, 40.5, "many"):
-        with pytest.raises(ValueError, match="evidence_points"):
-            GPQConfig(evidence_points=bad)  # type: ignore[arg-type]
+    assert old.config.evidence_points == old.config.evidence_points_blind == 300
+    for name in ("evidence_points", "evidence_points_blind"):
+        for bad in (1, 2001, 40.5, "many"):
+            with pytest.raises(ValueError, match=name):
+                GPQConfig(**{name: bad})
+
+
+def test_a_fit_blind_to_an_action_runs_again_on_more_points(tmp_path: Path) -> None:
+    """A fit that leaves an action's length-scale at its upper bound (the idle action's,
+    here) runs again on ``evidence_points_blind`` points, keeping the first as
+    ``first_fit``; the fits before the first rerun are those of an agent without it."""
+    off, on = (GPQAgent(PointToGoalWithIdleAction(extra=4), seed=0, max_bv=60, gamma=0.9,
+                        evidence_points=20, evidence_points_blind=blind).learn(300)
+               for blind in (20, 80))  # fmt: skip
+    assert not any("first_fit" in fit for fit in off.log.evidence_fits)
+    assert on.log.evidence_fits[0]["first_fit"] == {
+        key: off.log.evidence_fits[0][key]
+        for key in ("points", "lengthscale", "log_evidence", "at_bound")
+    }
+    for fit in on.log.evidence_fits:
+        first = fit.get("first_fit", fit)
+        assert first["points"] == min(20, fit["transitions"])
+        if "first_fit" in fit:
+            assert blind_actions(first, 2) and fit["points"] == min(80, fit["transitions"])
+        else:
+            assert not blind_actions(fit, 2)
+    assert sum("first_fit" in fit for fit in on.log.evidence_fits) >= 3
+    assert on.state.fitted_lengthscale != off.state.fitted_lengthscale
+    on.save(tmp_path / "agent.npz")
+    loaded = GPQAgent.load(tmp_path / "agent.npz", env=PointToGoalWithIdleAction(extra=4))
+    assert loaded.log.evidence_fits == on.log.evidence_fits
+    bounds = ["lengthscale[0] upper", "lengthscale[3] lower", "lengthscale[4] upper"]
+    assert blind_actions({"lengthscale": [1.0] * 5, "at_bound": bounds}, 2) == [1]
+    assert blind_actions({"lengthscale": [1.0] * 5, "at_bound": bounds}, 1) == [0]
 
 
 def test_auto_with_long_lengthscales_or_a_graph_kernel_keeps_the_rule() -> None:

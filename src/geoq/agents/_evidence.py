@@ -16,7 +16,13 @@ from geoq.gp.evidence import fit_squared_exponential
 from geoq.gp.numerics import NumericalWarning
 from geoq.learners.scaling import InputScaling
 
-__all__ = ["EVIDENCE_RESTARTS", "EvidenceAgent", "fit_lengthscales", "refit_lengthscales"]
+__all__ = [
+    "EVIDENCE_RESTARTS",
+    "EvidenceAgent",
+    "blind_actions",
+    "fit_lengthscales",
+    "refit_lengthscales",
+]
 
 #: Random restarts of each fit beyond the warm start (the length-scales in use).
 EVIDENCE_RESTARTS = 1
@@ -47,6 +53,17 @@ def fit_lengthscales(
     return ls, record
 
 
+def blind_actions(record: dict[str, Any], action_dim: int) -> list[int]:
+    """Indices (``0 .. action_dim - 1``) of the actions whose length-scale a fit's
+    ``record`` left at its upper bound; the actions are the last ``action_dim`` inputs."""
+    d = len(record["lengthscale"])
+    return [
+        k - (d - action_dim)
+        for k in range(d - action_dim, d)
+        if f"lengthscale[{k}] upper" in record["at_bound"]
+    ]
+
+
 class EvidenceAgent(Protocol):
     """What a refit reads of the agent (a :class:`~geoq.agents.GPQAgent`), and the two
     steps it asks of it: the length-scales in use, and rebuilding its GP with new ones."""
@@ -57,6 +74,7 @@ class EvidenceAgent(Protocol):
     scaling: InputScaling
     rng: np.random.Generator
     log: TrainingLog
+    action_dim: int
 
     def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
     def _lengthscale(self) -> float | tuple[float, ...]: ...
@@ -66,8 +84,9 @@ class EvidenceAgent(Protocol):
 def refit_lengthscales(agent: EvidenceAgent) -> None:
     """``hyperparameters="evidence"``: ``agent``'s length-scales fitted to its window's
     inputs and standardised targets (:func:`fit_lengthscales` on at most
-    ``config.evidence_points``, warm-started from those in use); its GP is rebuilt with
-    them, the fit recorded in its log."""
+    ``config.evidence_points``, warm-started from those in use; again on
+    ``config.evidence_points_blind`` when an action's ends at its upper bound); its GP is
+    rebuilt with them, the fit recorded in its log."""
     c, st, buffer = agent.config, agent.state, agent.buffer
     stored = buffer.transitions(last=c.window)
     z = (buffer.targets(last=c.window) - st.y_mean) / st.y_scale
@@ -79,6 +98,12 @@ def refit_lengthscales(agent: EvidenceAgent) -> None:
     X = agent.inputs(stored.states, stored.actions)
     rng = np.random.default_rng(agent.rng.integers(2**32))
     ls, record = fit_lengthscales(X, z, start, rng, c.evidence_points)
+    if min(n, c.evidence_points_blind) > record["points"] and blind_actions(
+        record, agent.action_dim
+    ):
+        first = {key: record[key] for key in ("points", "lengthscale", "log_evidence", "at_bound")}
+        ls, record = fit_lengthscales(X, z, start, rng, c.evidence_points_blind)
+        record["first_fit"] = first
     agent.log.evidence_fits.append(record)
     st.fitted_lengthscale = ls
     agent._restream()

@@ -55,6 +55,7 @@ _LEGACY_CONFIG: dict[str, Any] = {
     "greedy_actions": "candidates",
     "actor": "off",
     "evidence_points": 300,
+    "evidence_points_blind": 300,
 }
 
 #: The config field (or file entry) behind each of a kernel's saved hyper-parameters

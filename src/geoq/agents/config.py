@@ -136,6 +136,13 @@ class GPQConfig:
     apart in action: on ``Walker2d-v5`` (23 inputs) 300 points put some action
     length-scales at the fit's bound (500 box sides), 1,000 points most at 1.2-5
     (docs/design-notes.md)."""
+    evidence_points_blind: int = 300
+    """Points of a second evidence fit, run when the first (on ``evidence_points``) leaves
+    an action's length-scale at its upper bound and the window holds more transitions:
+    ``Q`` would be flat along that action, its greedy choice there arbitrary. The second
+    fit starts where the first did and its length-scales are taken; its record in
+    ``log.evidence_fits`` keeps the first's as ``first_fit``. In ``[2, 2000]``; no larger
+    than ``evidence_points``: never."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3
@@ -294,6 +301,7 @@ class GPQConfig:
             check_int(getattr(self, name), name, minimum)
         check_int(self.n_candidates, "n_candidates", 3, MAX_CANDIDATES)
         check_int(self.evidence_points, "evidence_points", 2, MAX_EVIDENCE_POINTS)
+        check_int(self.evidence_points_blind, "evidence_points_blind", 2, MAX_EVIDENCE_POINTS)
         check_real(self.replay_eps, "replay_eps", low=0.0, high=1.0, low_open=True, high_open=True)
         check_real(self.gamma, "gamma", low=0.0, high=1.0, high_open=True)
         try:

@@ -130,19 +130,14 @@ class GPQConfig:
     left every greedy state at the prior (docs/design-notes.md)."""
     evidence_points: int = 300
     """Most stored transitions an evidence fit sees (``hyperparameters="evidence"``), drawn
-    at random from the window, in ``[2, 2000]``. A fit costs ``O(n^3)`` per evaluation and
-    holds ``8 (d_s + d_a) n^2`` bytes (0.18 GB at 1,000 points and 23 inputs). The
-    evidence sees what an action changes only through pairs of points near in state and
-    apart in action: on ``Walker2d-v5`` (23 inputs) 300 points put some action
-    length-scales at the fit's bound (500 box sides), 1,000 points most at 1.2-5
-    (docs/design-notes.md)."""
+    at random from the window, in ``[2, 2000]``; a fit costs ``O(n^3)`` per evaluation and
+    holds ``8 (d_s + d_a) n^2`` bytes. The evidence sees an action's effect only through
+    pairs near in state and apart in action: on ``Walker2d-v5`` (23 inputs) 300 points
+    leave some action length-scales at the bound, 1,000 most at 1.2-5 box sides."""
     evidence_points_blind: int = 300
-    """Points of a second evidence fit, run when the first (on ``evidence_points``) leaves
-    an action's length-scale at its upper bound and the window holds more transitions:
-    ``Q`` would be flat along that action, its greedy choice there arbitrary. The second
-    fit starts where the first did and its length-scales are taken; its record in
-    ``log.evidence_fits`` keeps the first's as ``first_fit``. In ``[2, 2000]``; no larger
-    than ``evidence_points``: never."""
+    """Points of a second fit, taken, where the first leaves an action's length-scale at
+    its upper bound (``Q`` flat along it) and the window holds more; its record keeps the
+    first as ``first_fit``. In ``[2, 2000]``; at most ``evidence_points``: never."""
     amplitude: float = 1.0
     """Prior variance of the standardised Q (every kernel)."""
     eps: float = 0.3

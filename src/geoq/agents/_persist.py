@@ -5,7 +5,8 @@ targets), ``episodes``, ``candidates``, ``action_box``, ``obs_dim``,
 ``covariances/*`` (the fitted-Q phases' column order, optional), ``explorer/*``
 (the exploration map, :mod:`geoq.agents.map_explorer`; optional), ``model/*`` (the
 dynamics model and plans, :mod:`geoq.agents.model_planning`; with a planner), ``actor/*``
-(the policy trained on ``Q``, :mod:`geoq.agents.q_actor`; once it has weights); ``meta``
+(the policy trained on ``Q``, :mod:`geoq.agents.q_actor`; once it has weights), ``kept_q/*``
+(the copy of ``Q`` greedy actions follow, :mod:`geoq.agents.kept_q`; with ``keep_q``); ``meta``
 is JSON (config, scaling, env id, seed, generator state, standardisation,
 counters). Optional meta keys added after version 1 default to a fresh agent's
 values, so older files load.
@@ -48,7 +49,7 @@ _ARCHIVE_VERSION = 1
 
 #: Config fields a file written before them lacks, and the value its code behaved as:
 #: phases every ``train_every`` steps, length-scales by the rule, the candidates' greedy,
-#: no actor, evidence fits on 300 points.
+#: no actor, evidence fits on 300 points, no kept ``Q``.
 _LEGACY_CONFIG: dict[str, Any] = {
     "train_fraction": 0.0,
     "hyperparameters": "rule",
@@ -56,6 +57,7 @@ _LEGACY_CONFIG: dict[str, Any] = {
     "actor": "off",
     "evidence_points": 300,
     "evidence_points_blind": 300,
+    "keep_q": "off",
 }
 
 #: The config field (or file entry) behind each of a kernel's saved hyper-parameters
@@ -95,6 +97,7 @@ def save_agent(agent: GPQAgent, path: str | PathLike[str]) -> None:
     arrays.update({f"explorer/{k}": v for k, v in agent.explorer.to_arrays().items()})
     arrays.update({f"model/{k}": v for k, v in agent.planning.to_arrays().items()})
     arrays.update({f"actor/{k}": v for k, v in agent.actor.to_arrays().items()})
+    arrays.update({f"kept_q/{k}": v for k, v in agent.kept_q.to_arrays().items()})
     save_archive(path, _ARCHIVE_KIND, _ARCHIVE_VERSION, arrays)
 
 
@@ -165,6 +168,8 @@ def load_agent(
         agent.planning.restore({k[6:]: v for k, v in a.items() if k.startswith("model/")},
                                str(path))  # fmt: skip
         agent.actor.restore({k[6:]: v for k, v in a.items() if k.startswith("actor/")}, obs_dim)
+        kept = {k[7:]: v for k, v in a.items() if k.startswith("kept_q/")}
+        agent.kept_q.restore(kept, agent, str(path))
     except (KeyError, ValueError, TypeError) as exc:
         raise ArchiveError(f"{path}: inconsistent GPQAgent archive ({exc}); save it again") from exc
     agent.env = None

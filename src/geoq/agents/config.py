@@ -12,15 +12,10 @@ from typing import Any, Literal
 import numpy as np
 
 from geoq._typing import FloatArray
-from geoq._validation import (
-    check_budget,
-    check_int,
-    check_learn_arguments,
-    check_real,
-    check_seed,
-)
+from geoq._validation import check_budget, check_int, check_learn_arguments, check_real, check_seed
 from geoq.agents.acquisition import EXPLORATION_MODES, Exploration
 from geoq.agents.greedy_data import GREEDY_ACTIONS, GreedyActions, resolve_greedy_actions
+from geoq.agents.kept_q import KEEP_Q, KeepQ
 from geoq.agents.map_explorer import EXPLORE_MAP_MODES, ExploreMap
 from geoq.agents.q_actor import ACTORS, Actor
 from geoq.agents.state import LearningState, as_range, check_value_bounds, value_bounds
@@ -67,8 +62,7 @@ class GPQConfig:
     """``euclidean`` (squared exponential), ``nearest`` (JC12 eq. 4), ``interpolated``
     (JC12 eq. 5) or ``resistance`` (positive-definite kernel on the same graph). The
     resistance kernel re-factorises ``K_BV`` after every change of the basis set,
-    O(max_bv^3): measured 46-76 ms per step at 400 BVs, 314-329 ms at 800 (TwoRooms),
-    11-22 ms at 200; consider ``max_bv=200`` with it (docs/results.md, the replay table)."""
+    O(max_bv^3): consider ``max_bv=200`` with it (docs/results.md, the replay table)."""
     max_bv: int | None = None
     """Basis-vector budget of the sparse online GP, in ``[1, 5000]``. ``None``:
     :func:`default_max_bv` of the input dimension ``d_s + d_a`` (400 up to 3 inputs,
@@ -158,11 +152,8 @@ class GPQConfig:
     """With ``train_every``: a phase every 25 steps while the agent has up to 500
     transitions, then each time its data grew by 5%, so early experience is used at
     once, while a long run pays about what a phase every ``train_fraction x window``
-    (500) steps costs. Swing-up, 10 seeds: success >= 0.9 after a median 1,000
-    steps [750, 1,000], 10 of 10 seeds, against 1,375 [1,250, 2,000] and 9 of 10
-    with a phase every 250 steps (docs/design-notes.md); 20 seeds (2026-12-02):
-    875 [750, 1,000], 20 of 20. 0: every ``train_every``
-    steps, the schedule of files saved before this field."""
+    (500) steps costs (the swing-up succeeds sooner than with a phase every 250 steps:
+    docs/design-notes.md). 0: every ``train_every`` steps, as files saved before it."""
     max_sweeps: int = 200
     """Largest number of fitted-Q sweeps per phase."""
     sweep_tol: float = 1e-3
@@ -262,6 +253,10 @@ class GPQConfig:
     :func:`~geoq.agents.q_actor.curves_inside`); ``off``: none; ``auto`` (resolved by
     :meth:`for_dims`, as ``planner``'s): ``off`` on the tasks ``Q`` alone learns,
     ``curved`` elsewhere. A map's or a planner's policy comes first."""
+    keep_q: KeepQ = "off"
+    """``on``: ``Q``'s greedy actions are those of the copy of ``Q`` that did best in training
+    (:mod:`geoq.agents.kept_q`; learning alike; better on ``Hopper-v5`` and ``Walker2d-v5``,
+    worse on ``InvertedDoublePendulum-v5``: docs/design-notes.md); ``off``: the current's."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones
@@ -274,7 +269,7 @@ class GPQConfig:
             ("kernel", KERNEL_NAMES), ("replay", REPLAYS), ("hyperparameters", HYPERPARAMETERS),
             ("prior", PRIORS), ("exploration", EXPLORATION_MODES),
             ("explore_map", EXPLORE_MAP_MODES), ("planner", PLANNERS),
-            ("greedy_actions", GREEDY_ACTIONS), ("actor", ACTORS),
+            ("greedy_actions", GREEDY_ACTIONS), ("actor", ACTORS), ("keep_q", KEEP_Q),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")

@@ -30,22 +30,21 @@ How it learns (every choice is a field of :class:`GPQConfig`):
    targets of every stored transition are re-bootstrapped to convergence on the
    current basis set and kernel (:mod:`geoq.agents.fitted_q`), then the
    posterior is refit to them (DTC, :meth:`SparseOnlineGP.refit`).
-5. **Standardisation.** The GP sees ``z = (y - y_mean) / y_scale``, set after each
-   phase by ``prior`` (:class:`GPQConfig`): by default the prior mean, the value of
-   what was never tried, is the upper value bound (optimism), the prior std half
-   the bounds' range.
+5. **Standardisation.** The GP sees ``z = (y - y_mean) / y_scale``, set after each phase
+   by ``prior`` (:class:`GPQConfig`): the prior mean, the value of what was never tried,
+   the upper value bound (optimism) where ``Q`` alone learns, the prior std half the range.
 6. **Exploration over states** where the moves are the actions' own (``explore_map``):
    a map of the observed moves (:mod:`geoq.agents.map_explorer`) picks the training
    actions, and the greedy ones where it knows a route to a termination.
 7. **Bounded targets.** Targets are clipped to :meth:`GPQAgent.value_bounds`, where
    every discounted return lies (without it regression + max diverged).
 8. **Planning** (``planner``): acting through a GP model (:mod:`~geoq.agents.model_planning`);
-   or (``actor``) a policy trained on ``Q``'s mean (:mod:`~geoq.agents.q_actor`).
+   or (``actor``) a policy trained on ``Q``'s mean (:mod:`~geoq.agents.q_actor`); greedy,
+   the ``Q`` that did best in training (``keep_q``, :mod:`~geoq.agents.kept_q`).
 
 **Threads.** ``learn`` and ``train`` run on one BLAS thread (:mod:`geoq._threads`). A learning
-step (an env step, its phase, an episode's callback) holds the agent's re-entrant lock, as
-do ``predict``, ``q_candidates``, ``q_mean``, ``train``, ``save``, ``set_env``.
-``predict(deterministic=True)`` draws nothing: it leaves the learning as it was.
+step (an env step, its phase, an episode's callback) holds the agent's re-entrant lock, as do
+``predict`` (which, greedy, draws nothing), ``q_candidates``, ``q_mean``, ``train``, ``save``.
 """
 
 from __future__ import annotations
@@ -70,6 +69,7 @@ from geoq.agents.buffer import EpisodeRecord, TransitionBuffer, Transitions
 from geoq.agents.config import REPLAYS, GPQConfig, check_learn_arguments, check_seed
 from geoq.agents.fitted_q import FittedQPhase, PhaseInputs
 from geoq.agents.greedy_data import act_in_data
+from geoq.agents.kept_q import KeptQ
 from geoq.agents.map_explorer import MapExplorer
 from geoq.agents.model_planning import ModelPlanning
 from geoq.agents.phase_inputs import phase_inputs_of
@@ -101,11 +101,9 @@ class GPQAgent:
     env : a ``gymnasium.Env`` with a 1-D Box observation space and a 1-D Box
         action space with finite bounds, or the id of a registered one.
     kernel : ``"euclidean" | "nearest" | "interpolated" | "resistance"``.
-    max_bv : basis-vector budget of the sparse GP (default: :func:`default_max_bv` of
-        ``d_s + d_a``, 400 up to 3 inputs, 800 beyond).
+    max_bv : basis-vector budget of the sparse GP (default: :func:`default_max_bv`).
     seed : seed of every random choice (exploration, candidates, env resets).
-    periods : wrap-around period of each observation dimension (raw units, 0 =
-        not periodic); known for the bundled tasks.
+    periods : wrap-around period per observation (raw units, 0: none); known when bundled.
     scaling : input scaling of ``[s, a]`` (default: the spaces' half-ranges).
     **config : any other field of :class:`GPQConfig`.
 
@@ -118,6 +116,7 @@ class GPQAgent:
     log : what it recorded while learning (:class:`TrainingLog`).
     phase : the fitted-Q phase (:class:`FittedQPhase`) with its replay strategy.
     explorer : the exploration map, once decided on (:class:`MapExplorer`).
+    kept_q : the copy of ``Q`` greedy actions follow (:class:`~geoq.agents.kept_q.KeptQ`).
     """
 
     def __init__(
@@ -179,6 +178,7 @@ class GPQAgent:
                                     self.action_high, config.gamma)  # fmt: skip
         self.planning = ModelPlanning(config, obs_dim, self.action_low, self.action_high)
         self.actor = QActor(config.actor, self.action_low, self.action_high)
+        self.kept_q = KeptQ(config.keep_q == "on")
 
     @property
     def max_bv(self) -> int:
@@ -216,8 +216,7 @@ class GPQAgent:
         return (y_mean + y_scale * mean).reshape(n, -1), (y_scale * std).reshape(n, -1)
 
     def q_mean(self, states: FloatArray) -> FloatArray:
-        """Posterior mean of ``Q`` ``[n, K]`` at every state x candidate: the mean of
-        :meth:`q_candidates` bit for bit, without the O(m^2)-per-point std."""
+        """:meth:`q_candidates`'s mean ``[n, K]`` bit for bit, without the O(m^2)-per-point std."""
         with self._lock:
             mean = self.gp.predict(self._scaled_candidate_inputs(states))
             return (self.state.y_mean + self.state.y_scale * mean).reshape(states.shape[0], -1)
@@ -234,8 +233,9 @@ class GPQAgent:
     def predict(self, observation: Any, deterministic: bool = True) -> tuple[FloatArray, None]:
         """The action ``[d_a]`` (or ``[n, d_a]`` for ``n`` observations) and ``None``.
 
-        ``deterministic=True``: the greedy action (the posterior mean's best, the plan's or the
-        actor's); otherwise the configured exploration (drawing from the agent's generator).
+        ``deterministic=True``: the greedy action (the posterior mean's best, the plan's, the
+        kept ``Q``'s or the actor's); otherwise the configured exploration (drawing from the
+        agent's generator).
         Before the warm-up has fixed a data-driven input scaling: the warm-up's policy."""
         if not isinstance(deterministic, bool | np.bool_):
             raise ValueError(f"deterministic must be True or False, got {deterministic!r}")
@@ -246,11 +246,14 @@ class GPQAgent:
                                         self.rng)  # fmt: skip
                 return (a[0] if single else a), None
             mean, std = self.q_candidates(S)
-            actions = self._act(S, mean, std, greedy=deterministic)
             if deterministic and self.planning.greedy_active:
                 actions = np.vstack([self.planning.action(self, s[None], None) for s in S])
+            elif deterministic and self.kept_q.kept is not None:
+                actions = self.kept_q.greedy(self, S)
             elif deterministic and self.actor.ready:
                 actions = self.actor.act(S)
+            else:  # Q's own: greedy (drawing nothing) or exploring
+                actions = self._act(S, mean, std, greedy=deterministic)
             actions = self.explorer.greedy(S, mean, actions) if deterministic else actions
             return (actions[0] if single else actions), None
 
@@ -264,9 +267,8 @@ class GPQAgent:
                               high=self.action_high)  # fmt: skip
 
     def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
-        """The action ``[1, d_a]`` to take at ``s [1, d_s]``: the map's if there is one, else
-        uniformly random during the warm-up, else planned, else the actor's, else by
-        ``exploration``."""
+        """The action ``[1, d_a]`` at ``s [1, d_s]``: the map's if there is one, else uniform
+        in the warm-up, else planned, else the actor's, else by ``exploration``."""
         a = self.explorer.action(s, self.rng)
         if a is not None:
             return a
@@ -301,7 +303,7 @@ class GPQAgent:
         agent continues exactly as the original would; an episode cut short is not recorded.
         A step the env answers wrongly (:func:`~geoq.agents._env.env_step`) raises a
         ``ValueError`` and is not taken (the agent stays as after the step before).
-        ``learn(0)`` changes nothing. Other threads may predict meanwhile (module docstring)."""
+        ``learn(0)`` changes nothing. Other threads may predict meanwhile."""
         check_learn_arguments(total_timesteps, progress_bar, callback)
         env = self.env
         if env is None:
@@ -339,6 +341,7 @@ class GPQAgent:
         s = _env.env_reset(env, seed, self.obs_dim, self._obs_scale())
         q = self._q_or_none(s)  # (q_candidates holds the lock)
         self.planning.start_episode(s, self.buffer, self.rng)
+        self.kept_q.start_episode(self)
         ep_return, steps = 0.0, 0
         while steps < max_steps:
             with self._lock:
@@ -355,6 +358,7 @@ class GPQAgent:
                     n = len(self.episodes) + 1
                     rec = EpisodeRecord(self.num_timesteps, n, ep_return, step.success)
                     self.log.episodes.append(rec)
+                    self.kept_q.end_episode(ep_return)
                     return steps, callback is not None and callback(rec) is False
             s = step.next_state
         return steps, False
@@ -409,8 +413,7 @@ class GPQAgent:
         self.log.rescales += 1
 
     def _restream(self) -> None:
-        """A new GP (current scaling and length-scales) fed the stored transitions in order,
-        each with its current target (the warm-up's: its reward)."""
+        """A new GP (current scaling, length-scales) fed the stored transitions and targets."""
         self.phase.covariances.clear()  # new inputs or kernel
         self.gp = self._new_gp()
         stored = self.buffer.transitions(last=self.config.window)
@@ -424,10 +427,8 @@ class GPQAgent:
             self.gp.update(X[i], (y[i] - self.state.y_mean) / self.state.y_scale)
 
     def train(self) -> int:
-        """One fitted-Q phase on the stored transitions; returns the number of sweeps.
-
-        Its wall time is added to ``log.train_seconds`` (the compute cost of replay).
-        """
+        """One fitted-Q phase on the stored transitions; returns the number of sweeps. Its
+        wall time is added to ``log.train_seconds`` (the compute cost of replay)."""
         with self._lock:
             st = self.state
             if st.scaling_pending:

@@ -29,7 +29,7 @@ import numpy as np
 
 from geoq._geometry import scaled_wrapped_squared_distances
 from geoq._typing import FloatArray
-from geoq.agents.buffer import TransitionBuffer
+from geoq.agents.buffer import Transitions
 from geoq.gp import SparseOnlineGP
 from geoq.learners.scaling import InputScaling
 
@@ -51,6 +51,13 @@ GREEDY_ACTIONS: tuple[str, ...] = ("auto", "candidates", "data")
 BLOCK = 2**22
 
 
+class _Stored(Protocol):
+    """What :func:`greedy_in_data` reads of the stored transitions (a
+    :class:`~geoq.agents.buffer.TransitionBuffer`, or a prefix of one)."""
+
+    def transitions(self, last: int | None = None) -> Transitions: ...
+
+
 class _Agent(Protocol):
     """What :func:`greedy_in_data` reads of a :class:`~geoq.agents.GPQAgent` (named by
     its members: the agent's module imports this one)."""
@@ -60,9 +67,11 @@ class _Agent(Protocol):
     action_low: FloatArray
     action_high: FloatArray
     candidates: FloatArray
-    buffer: TransitionBuffer
     scaling: InputScaling
     gp: SparseOnlineGP
+
+    @property
+    def buffer(self) -> _Stored: ...
 
     def inputs(self, states: FloatArray, actions: FloatArray) -> FloatArray: ...
 

@@ -10,15 +10,17 @@ were stored (the data its greedy action is sought among,
 :mod:`~geoq.agents.greedy_data`). Where the episode finishes (one cut short by
 ``learn``'s budget does not count), the copy is kept if the episode's return is at least
 the return of the episode that kept the copy before (the ``record``): the ``Q`` whose
-episode returned the most so far, the newer of equals. (Kept instead by the mean of two
-episodes in a row, the copies held lower greedy returns on ``Hopper-v5``: design notes,
-part thirty.)
+episode returned the most so far, the newer of equals (the mean of two episodes in a
+row, measured beside it, did no better: design notes, part thirty).
 
 Greedy actions where ``Q``'s would be taken (no policy's weights are the greedy ones)
 are the kept copy's, by ``Q``'s own greedy rule (the actor's where it was ready, else
 ``greedy_actions``'s, among the transitions stored at the copy). Nothing learned reads
 the copy: training actions, targets, phases and searches are the agent's own, so a run's
 training is the same with or without it, and only its greedy checkpoints differ.
+Off by default: it lifted ``Hopper-v5`` and ``Walker2d-v5`` and lowered
+``InvertedDoublePendulum-v5``, where ``Q`` climbs and the best episode so far is an old
+``Q``'s (docs/results.md, part thirty).
 """
 
 from __future__ import annotations

@@ -119,7 +119,7 @@ def test_off_is_the_default_and_other_settings_are_refused() -> None:
 
 
 def test_save_and_load_continue_identically(tmp_path: Path) -> None:
-    """The kept copy, its record and the run are saved; a loaded agent acts greedily as
+    """The kept copy and its record are saved; a loaded agent acts greedily as
     the original and, learning on, keeps the same copies."""
     a = GPQAgent("Pendulum-v1", seed=1, keep_q="on", explore_map="off", max_bv=50).learn(700)
     assert a.kept_q.kept is not None

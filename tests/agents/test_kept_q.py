@@ -53,7 +53,7 @@ def test_the_copy_kept_ran_the_best_episode_so_far() -> None:
     """A hand-run sequence: the copy kept is the one whose episode returned the most so
     far (of equals, the newer); a policy's episode and an episode cut short keep nothing;
     a copy is the GP as its episode started, not as it is now."""
-    kept, agent = KeptQ(True), _stub()
+    kept, agent = KeptQ("on"), _stub()
     _episode(kept, agent, 10.0)  # stored 0
     assert kept.kept is not None and kept.kept.stored == 0 and kept.record == 10.0
     _episode(kept, agent, 5.0)
@@ -67,13 +67,35 @@ def test_the_copy_kept_ran_the_best_episode_so_far() -> None:
     x = np.array([[0.3, 0.0]])
     assert kept.kept.gp.basis_vectors.shape == (6, 2)  # as its episode started
     assert agent.gp.n_bv > 6 and kept.kept.gp.predict(x) != agent.gp.predict(x)
-    off, stub = KeptQ(False), _stub()
+    off, stub = KeptQ("off"), _stub()
     _episode(off, stub, 1.0)
     assert off.kept is None and off.running is None and off.to_arrays() == {}
 
 
+def test_tested_keeps_the_copy_whose_test_returned_the_most() -> None:
+    """A hand-run sequence: ``Q``'s episodes alternate between exploring and testing, a
+    policy's episode and one cut short leave the turn as it was, and only tests keep."""
+    kept, agent = KeptQ("tested"), _stub()
+    _episode(kept, agent, 100.0)  # stored 0: exploring, not a test
+    assert kept.kept is None and kept.tested and not kept.testing
+    _episode(kept, agent, 10.0)  # stored 1: a test
+    assert kept.kept is not None and kept.kept.stored == 1 and kept.record == 10.0
+    assert not kept.tested
+    _episode(kept, agent, 500.0, policy=True)  # a policy's: the turn unchanged
+    _episode(kept, agent, None)  # cut short: the turn unchanged
+    assert not kept.tested
+    _episode(kept, agent, 50.0)  # stored 4: exploring
+    kept.start_episode(agent)  # type: ignore[arg-type]  # stored 5: a test
+    assert kept.testing and kept.running is not None
+    kept.end_episode(5.0)
+    assert kept.kept.stored == 1 and kept.tested is False
+    _episode(kept, agent, 0.0)  # stored 5: exploring
+    _episode(kept, agent, 20.0)  # stored 6: a test, kept
+    assert kept.kept.stored == 6 and kept.record == 20.0
+
+
 def test_nothing_is_copied_in_the_warm_up_or_where_a_map_acts() -> None:
-    kept, agent = KeptQ(True), _stub()
+    kept, agent = KeptQ("on"), _stub()
     agent.state.scaling_pending = True
     kept.start_episode(agent)  # type: ignore[arg-type]
     assert kept.running is None
@@ -110,6 +132,33 @@ def test_greedy_actions_are_those_of_the_agent_when_the_kept_copy_was_made(
     assert not np.array_equal(agent.predict(many)[0], off.predict(many)[0])
 
 
+def test_a_test_episode_acts_as_the_agent_greedily_did_when_it_started() -> None:
+    """Oracle: a deep copy of the whole agent taken where a test started (the callback of
+    the episode before), its own greedy actions at the test's states are the actions the
+    test took; the copy kept is one of the tests', with the best test return."""
+    settings = {"seed": 3, "explore_map": "off", "max_bv": 50, "greedy_actions": "data"}
+    agent = GPQAgent("Pendulum-v1", keep_q="tested", **settings)
+    snapshots = {}
+
+    def snapshot(record: object) -> None:
+        if agent.kept_q.tested:
+            snapshots[len(agent.buffer)] = copy.deepcopy(agent)
+
+    agent.learn(1400, callback=snapshot)
+    stored = agent.buffer.transitions()
+    tests = [n for n in snapshots if n + 200 <= len(agent.buffer)]
+    assert len(tests) >= 2
+    for n in tests:
+        was = snapshots[n]
+        was.kept_q.kept = None
+        S = stored.states[n : n + 200]
+        np.testing.assert_array_equal(stored.actions[n : n + 200], was.predict(S)[0])
+    returns = {n: float(stored.rewards[n : n + 200].sum()) for n in tests}
+    kept = agent.kept_q.kept
+    assert kept is not None and kept.stored in returns
+    assert agent.kept_q.record == pytest.approx(max(returns.values()), rel=1e-12)
+
+
 def test_off_is_the_default_and_other_settings_are_refused() -> None:
     assert GPQConfig().for_dims(11, 3).keep_q == "off"  # Hopper-v5's inputs
     assert GPQConfig(keep_q="on").for_dims(3, 1).keep_q == "on"
@@ -118,20 +167,23 @@ def test_off_is_the_default_and_other_settings_are_refused() -> None:
         GPQConfig(keep_q="auto")  # type: ignore[arg-type]
 
 
-def test_save_and_load_continue_identically(tmp_path: Path) -> None:
-    """The kept copy and its record are saved; a loaded agent acts greedily as
-    the original and, learning on, keeps the same copies."""
-    a = GPQAgent("Pendulum-v1", seed=1, keep_q="on", explore_map="off", max_bv=50).learn(700)
+@pytest.mark.parametrize("keep_q", ["on", "tested"])
+def test_save_and_load_continue_identically(tmp_path: Path, keep_q: str) -> None:
+    """The kept copy, its record and whose turn it is to test are saved; a loaded agent
+    acts greedily as the original and, learning on, keeps the same copies."""
+    a = GPQAgent("Pendulum-v1", seed=1, keep_q=keep_q, explore_map="off", max_bv=50).learn(700)
     assert a.kept_q.kept is not None
     a.save(tmp_path / "a.npz")
     b = GPQAgent.load(tmp_path / "a.npz")
     assert b.kept_q.record == a.kept_q.record and b.kept_q.kept is not None
+    assert b.kept_q.tested == a.kept_q.tested
     np.testing.assert_array_equal(b.predict(OBS)[0], a.predict(OBS)[0])
     a.learn(600)
     b.learn(600)
     assert b.kept_q.kept is not None and b.kept_q.kept.stored == a.kept_q.kept.stored
     np.testing.assert_array_equal(b.predict(OBS)[0], a.predict(OBS)[0])
     np.testing.assert_array_equal(b.gp.alpha, a.gp.alpha)
+    np.testing.assert_array_equal(b.buffer.to_arrays()["a"], a.buffer.to_arrays()["a"])
 
 
 def test_a_bad_kept_q_archive_is_refused(tmp_path: Path) -> None:
@@ -151,7 +203,15 @@ def test_a_bad_kept_q_archive_is_refused(tmp_path: Path) -> None:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: value}))
         with pytest.raises(ArchiveError, match=match):
             GPQAgent.load(tmp_path / "bad.npz")
+    np.savez(tmp_path / "bad.npz", **(arrays | {"kept_q/tested": np.bool_(True)}))
+    with pytest.raises(ArchiveError, match="not 'tested'"):
+        GPQAgent.load(tmp_path / "bad.npz")
     meta = json.loads(str(arrays["meta"]))
+    meta["config"]["keep_q"] = "tested"
+    with_meta = arrays | {"meta": np.asarray(json.dumps(meta))}
+    np.savez(tmp_path / "bad.npz", **(with_meta | {"kept_q/tested": np.float64(1.0)}))
+    with pytest.raises(ArchiveError, match="one bool"):
+        GPQAgent.load(tmp_path / "bad.npz")
     meta["config"]["keep_q"] = "off"
     np.savez(tmp_path / "off.npz", **(arrays | {"meta": np.asarray(json.dumps(meta))}))
     with pytest.raises(ArchiveError, match="keep_q is off"):

@@ -21,6 +21,14 @@ training is the same with or without it, and only its greedy checkpoints differ.
 Off by default: it lifted ``Hopper-v5`` and ``Walker2d-v5`` and lowered
 ``InvertedDoublePendulum-v5``, where ``Q`` climbs and the best episode so far is an old
 ``Q``'s (docs/results.md, part thirty).
+
+``tested``: a training episode is ``Q``'s UCB choices (or its actor's, noised), not its
+greedy actions, so its return measures another policy than the one kept. Here every
+other episode ``Q`` acts in is a test instead: its actions are the greedy ones of the copy
+taken as it started (the same rule, so the test measures what would be kept), and only a
+test's return can keep a copy. The episodes between explore as before; a policy's
+episode, or one ``learn``'s budget cut short, leaves the turn as it was. Learning reads
+the tests' transitions as any others.
 """
 
 from __future__ import annotations
@@ -42,8 +50,8 @@ from geoq.learners.scaling import InputScaling
 __all__ = ["KEEP_Q", "KeepQ", "KeptQ", "QCopy"]
 
 #: ``GPQConfig.keep_q``.
-KeepQ = Literal["on", "off"]
-KEEP_Q: tuple[str, ...] = ("on", "off")
+KeepQ = Literal["on", "tested", "off"]
+KEEP_Q: tuple[str, ...] = ("on", "tested", "off")
 
 
 class _Agent(Protocol):
@@ -110,13 +118,15 @@ class _Copied:
 class KeptQ:
     """The kept copy ``kept`` (None: none yet), the return that kept it ``record``, and the
     copy running the current episode ``running`` (None: another actor's, or none started);
-    ``on``: whether the agent keeps one at all (module docstring)."""
+    ``mode``: ``keep_q`` (module docstring). ``tested``: whether the next episode ``Q``
+    acts in is a test (``tested`` only); ``testing``: whether the running one is."""
 
-    def __init__(self, on: bool):
-        self.on = on
+    def __init__(self, mode: str):
+        self.on, self.tests = mode != "off", mode == "tested"
         self.kept: QCopy | None = None
         self.record = -np.inf
         self.running: QCopy | None = None
+        self.tested, self.testing = False, False
 
     def start_episode(self, agent: _Agent) -> None:
         """An episode starts: ``Q`` copied if it acts in it."""
@@ -124,24 +134,35 @@ class KeptQ:
             return
         acts = not (agent.state.scaling_pending or agent.explorer.map is not None
                     or agent.planning.active)  # fmt: skip
-        self.running = None
+        self.running, self.testing = None, False
         if acts:
             gp, actor, st = copy.deepcopy(agent.gp), copy.deepcopy(agent.actor), agent.state
             self.running = QCopy(gp, actor, agent.scaling, agent._lengthscale(), len(agent.buffer),
                                  st.y_mean, st.y_scale)  # fmt: skip
+            self.testing = self.tested
 
     def end_episode(self, ret: float) -> None:
-        """The episode finished with return ``ret``: its copy (if ``Q`` ran it) is kept if
-        ``ret`` is at least the ``record``."""
-        if self.running is not None and ret >= self.record:
-            self.kept, self.record = self.running, float(ret)
-        self.running = None
+        """The episode finished with return ``ret``: its copy (if ``Q`` ran it, and with
+        ``tested`` if it was a test) is kept if ``ret`` is at least the ``record``."""
+        if self.running is not None:
+            if ret >= self.record and (self.testing or not self.tests):
+                self.kept, self.record = self.running, float(ret)
+            self.tested = self.tests and not self.testing
+        self.running, self.testing = None, False
+
+    def test_action(self, agent: _Agent, states: FloatArray) -> FloatArray:
+        """A test episode's actions ``[n, d_a]``: the running copy's greedy ones."""
+        assert self.testing and self.running is not None
+        return self._greedy(self.running, agent, states)
 
     def greedy(self, agent: _Agent, states: FloatArray) -> FloatArray:
         """The kept copy's greedy actions ``[n, d_a]`` at ``states`` [n, d_s] (module
         docstring); draws nothing from the agent's generator."""
-        q = self.kept
-        assert q is not None
+        assert self.kept is not None
+        return self._greedy(self.kept, agent, states)
+
+    @staticmethod
+    def _greedy(q: QCopy, agent: _Agent, states: FloatArray) -> FloatArray:
         if q.actor.ready:
             return q.actor.act(states)
         z = q.gp.predict(q.scaling.transform_pairs(states, agent.candidates))
@@ -154,10 +175,13 @@ class KeptQ:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The kept copy and its record (an agent's archive, prefix ``kept_q/``); nothing
-        before one is kept. The running copy is not saved: an episode ends (and counts)
-        before the agent can be saved, and ``learn`` starts a new one, which copies afresh."""
+        """The kept copy and its record (an agent's archive, prefix ``kept_q/``; nothing
+        before one is kept) and, with ``tested``, whether the next episode of ``Q``'s is a
+        test. The running copy is not saved: ``learn`` starts a new episode, which copies
+        afresh (an episode it cut short counts for nothing)."""
         q, arrays = self.kept, dict[str, Any]()
+        if self.tests:
+            arrays["tested"] = np.bool_(self.tested)
         if q is not None:
             arrays["record"] = np.array(self.record)
             arrays |= {f"gp/{k}": v for k, v in q.gp.to_arrays().items()}
@@ -171,6 +195,14 @@ class KeptQ:
     def restore(self, a: dict[str, Any], agent: _Agent, source: str) -> None:
         """Inverse of :meth:`to_arrays` for ``agent`` (its config, scaling, actor's mode and
         buffer); ``ValueError`` where the arrays do not fit it."""
+        if "tested" in a:
+            if not self.tests:
+                raise ValueError("the file holds kept_q/tested, but its config's keep_q is not "
+                                 "'tested'")  # fmt: skip
+            tested = np.asarray(a.pop("tested"))
+            if tested.shape != () or tested.dtype != np.bool_:
+                raise ValueError(f"kept_q/tested must be one bool, got {tested!r}")
+            self.tested = bool(tested)
         if not a:
             return
         if not self.on:

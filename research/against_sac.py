@@ -11,9 +11,11 @@ learning step beside the other's (``ms_per_step``, evaluations excluded), per se
         --eval-episodes 10 --baseline sac --out w10 -j 2
     .venv/bin/python research/against_sac.py w10
     .venv/bin/python research/against_sac.py noise_run --against w10  # agent vs agent
+    .venv/bin/python research/against_sac.py noise_run --sac w10  # vs w10's SAC cells
 
 With ``--against OTHER`` the agent's cells of ``DIR`` are paired with the agent's cells of
-``OTHER`` instead (another setting, same seeds).
+``OTHER`` instead (another setting, same seeds); with ``--sac OTHER``, with ``OTHER``'s SAC
+cells (a setting run without ``--baseline``, against the SAC run of another folder).
 """
 
 from __future__ import annotations
@@ -47,9 +49,14 @@ def main() -> None:
     parser.add_argument("folder", type=Path, help="a geoq bench-control --out folder")
     parser.add_argument("--against", type=Path, default=None,
                         help="pair with this folder's agent cells instead of SAC's")  # fmt: skip
+    parser.add_argument("--sac", type=Path, default=None,
+                        help="pair with this folder's SAC cells instead of FOLDER's")  # fmt: skip
     args = parser.parse_args()
+    if args.against is not None and args.sac is not None:
+        parser.error("--against and --sac pair with different curves: give one")
     agent = cells(args.folder, baseline=False)
-    other = cells(args.against, False) if args.against else cells(args.folder, baseline=True)
+    other = (cells(args.against, False) if args.against
+             else cells(args.sac or args.folder, baseline=True))  # fmt: skip
     seeds = sorted(set(agent) & set(other))
     if not seeds:
         raise SystemExit(f"no seed has cells of both in {args.folder}")

@@ -256,9 +256,7 @@ class GPQConfig:
     keep_q: KeepQ = "off"
     """``on``: ``Q``'s greedy actions are those of the copy of ``Q`` that did best in training
     (:mod:`geoq.agents.kept_q`; learning alike; better on ``Hopper-v5`` and ``Walker2d-v5``,
-    worse on ``InvertedDoublePendulum-v5``: docs/design-notes.md); ``tested``: every other
-    episode ``Q`` acts in is a test, acted by the copy's greedy actions, and the copy kept
-    is the one whose test returned the most; ``off``: the current's."""
+    worse on ``InvertedDoublePendulum-v5``: docs/design-notes.md); ``off``: the current's."""
 
     def __post_init__(self) -> None:
         """Every rule of every field, checked once, here; NumPy scalars become Python ones

@@ -178,7 +178,7 @@ class GPQAgent:
                                     self.action_high, config.gamma)  # fmt: skip
         self.planning = ModelPlanning(config, obs_dim, self.action_low, self.action_high)
         self.actor = QActor(config.actor, self.action_low, self.action_high)
-        self.kept_q = KeptQ(config.keep_q)
+        self.kept_q = KeptQ(config.keep_q == "on")
 
     @property
     def max_bv(self) -> int:
@@ -267,8 +267,8 @@ class GPQAgent:
                               high=self.action_high)  # fmt: skip
 
     def _explore(self, s: FloatArray, q: QValues) -> FloatArray:
-        """The action ``[1, d_a]`` at ``s [1, d_s]``: the map's if there is one, else uniform in
-        the warm-up, else planned, else a ``keep_q`` test's, else the actor's or exploration's."""
+        """The action ``[1, d_a]`` at ``s [1, d_s]``: the map's if there is one, else uniform
+        in the warm-up, else planned, else the actor's, else by ``exploration``."""
         a = self.explorer.action(s, self.rng)
         if a is not None:
             return a
@@ -276,8 +276,6 @@ class GPQAgent:
             return self.rng.uniform(self.action_low, self.action_high)[None, :]
         if self.planning.active:
             return self.planning.action(self, s, self.rng)
-        if self.kept_q.testing:
-            return self.kept_q.test_action(self, s)
         if self.actor.ready:
             return self.actor.explore(s, self.config.action_noise, self.rng)
         return self._act(s, *q, greedy=False)
@@ -421,7 +419,8 @@ class GPQAgent:
         stored = self.buffer.transitions(last=self.config.window)
         y = self.buffer.targets(last=self.config.window)
         graph = isinstance(self.gp.kernel, GraphKernel)
-        S, S2, X = stored.states, stored.next_states, self.inputs(stored.states, stored.actions)
+        S, S2 = stored.states, stored.next_states
+        X = self.inputs(S, stored.actions)
         for i in range(len(y)):
             if graph and (i == 0 or not np.array_equal(S[i], S2[i - 1])):
                 self.gp.kernel.start_rollout()  # type: ignore[attr-defined]
@@ -434,7 +433,8 @@ class GPQAgent:
             st = self.state
             if st.scaling_pending:
                 return 0
-            st.last_train_timestep, t0 = st.num_timesteps, time.perf_counter()
+            st.last_train_timestep = st.num_timesteps
+            t0 = time.perf_counter()
             if st.data_scaled and self.env is not None:  # the states' spread outgrew the scale?
                 if _env.outgrew(self._data_scaling(), self.scaling, RESCALE_FACTOR):
                     self._rescale_from_data()

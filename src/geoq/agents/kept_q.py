@@ -21,19 +21,6 @@ training is the same with or without it, and only its greedy checkpoints differ.
 Off by default: it lifted ``Hopper-v5`` and ``Walker2d-v5`` and lowered
 ``InvertedDoublePendulum-v5``, where ``Q`` climbs and the best episode so far is an old
 ``Q``'s (docs/results.md, part thirty).
-
-``tested``: a training episode is ``Q``'s UCB choices (or its actor's, noised), not its
-greedy actions, so its return measures another policy than the one kept. Here every
-other episode ``Q`` acts in is a test instead, acted by a copy's greedy actions (the rule
-greedy actions follow, so a test measures what is kept), and the tests take turns: a
-challenger's (the copy of ``Q`` as the test starts) and the kept copy's again. The kept
-copy's ``record`` is the mean of its tests' returns; a challenger whose test returned at
-least that is kept instead, its record that one return, which the next test (its own)
-checks. A lucky test is so found out, and a copy that did well once does not stand for
-good against the ``Q`` that keeps learning (with one test each, the first walkers kept
-on ``Walker2d-v5`` stood to the end on most seeds: design notes, part thirty-one).
-The episodes between explore as before; a policy's episode, or one ``learn``'s budget cut
-short, leaves the turns as they were. Learning reads the tests' transitions as any others.
 """
 
 from __future__ import annotations
@@ -55,8 +42,8 @@ from geoq.learners.scaling import InputScaling
 __all__ = ["KEEP_Q", "KeepQ", "KeptQ", "QCopy"]
 
 #: ``GPQConfig.keep_q``.
-KeepQ = Literal["on", "tested", "off"]
-KEEP_Q: tuple[str, ...] = ("on", "tested", "off")
+KeepQ = Literal["on", "off"]
+KEEP_Q: tuple[str, ...] = ("on", "off")
 
 
 class _Agent(Protocol):
@@ -123,18 +110,13 @@ class _Copied:
 class KeptQ:
     """The kept copy ``kept`` (None: none yet), the return that kept it ``record``, and the
     copy running the current episode ``running`` (None: another actor's, or none started);
-    ``mode``: ``keep_q`` (module docstring). With ``tested``: ``returns``, the kept copy's
-    tests' returns (``record`` their mean); ``tested``, whether the next episode ``Q`` acts
-    in is a test, and ``retest``, whether that test is the kept copy's; ``testing`` and
-    ``retesting``, whether the running episode is a test, and the kept copy's."""
+    ``on``: whether the agent keeps one at all (module docstring)."""
 
-    def __init__(self, mode: str):
-        self.on, self.tests = mode != "off", mode == "tested"
+    def __init__(self, on: bool):
+        self.on = on
         self.kept: QCopy | None = None
         self.record = -np.inf
         self.running: QCopy | None = None
-        self.returns: list[float] = []
-        self.tested = self.testing = self.retest = self.retesting = False
 
     def start_episode(self, agent: _Agent) -> None:
         """An episode starts: ``Q`` copied if it acts in it."""
@@ -142,43 +124,24 @@ class KeptQ:
             return
         acts = not (agent.state.scaling_pending or agent.explorer.map is not None
                     or agent.planning.active)  # fmt: skip
-        self.running, self.testing, self.retesting = None, False, False
-        if acts and self.tested and self.retest and self.kept is not None:
-            self.running, self.testing, self.retesting = self.kept, True, True
-        elif acts:
+        self.running = None
+        if acts:
             gp, actor, st = copy.deepcopy(agent.gp), copy.deepcopy(agent.actor), agent.state
             self.running = QCopy(gp, actor, agent.scaling, agent._lengthscale(), len(agent.buffer),
                                  st.y_mean, st.y_scale)  # fmt: skip
-            self.testing = self.tested
 
     def end_episode(self, ret: float) -> None:
-        """The episode finished with return ``ret``. Without tests: its copy (if ``Q`` ran
-        it) is kept if ``ret`` is at least the ``record``. With: a challenger's test keeps
-        its copy so; the kept copy's adds ``ret`` to its returns, whose mean is the record."""
-        if self.running is not None:
-            if self.retesting:
-                self.returns.append(float(ret))
-                self.record = float(np.mean(self.returns))
-            elif ret >= self.record and (self.testing or not self.tests):
-                self.kept, self.record = self.running, float(ret)
-                self.returns = [self.record] if self.tests else []
-            self.retest = self.retest != self.testing  # the tests take turns
-            self.tested = self.tests and not self.testing
-        self.running, self.testing, self.retesting = None, False, False
-
-    def test_action(self, agent: _Agent, states: FloatArray) -> FloatArray:
-        """A test episode's actions ``[n, d_a]``: the running copy's greedy ones."""
-        assert self.testing and self.running is not None
-        return self._greedy(self.running, agent, states)
+        """The episode finished with return ``ret``: its copy (if ``Q`` ran it) is kept if
+        ``ret`` is at least the ``record``."""
+        if self.running is not None and ret >= self.record:
+            self.kept, self.record = self.running, float(ret)
+        self.running = None
 
     def greedy(self, agent: _Agent, states: FloatArray) -> FloatArray:
         """The kept copy's greedy actions ``[n, d_a]`` at ``states`` [n, d_s] (module
         docstring); draws nothing from the agent's generator."""
-        assert self.kept is not None
-        return self._greedy(self.kept, agent, states)
-
-    @staticmethod
-    def _greedy(q: QCopy, agent: _Agent, states: FloatArray) -> FloatArray:
+        q = self.kept
+        assert q is not None
         if q.actor.ready:
             return q.actor.act(states)
         z = q.gp.predict(q.scaling.transform_pairs(states, agent.candidates))
@@ -191,17 +154,12 @@ class KeptQ:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self) -> dict[str, Any]:
-        """The kept copy and its record (an agent's archive, prefix ``kept_q/``; nothing
-        before one is kept) and, with ``tested``, whether the next episode of ``Q``'s is a
-        test. The running copy is not saved: ``learn`` starts a new episode, which copies
-        afresh (an episode it cut short counts for nothing)."""
+        """The kept copy and its record (an agent's archive, prefix ``kept_q/``); nothing
+        before one is kept. The running copy is not saved: an episode ends (and counts)
+        before the agent can be saved, and ``learn`` starts a new one, which copies afresh."""
         q, arrays = self.kept, dict[str, Any]()
-        if self.tests:
-            arrays |= {"tested": np.bool_(self.tested), "retest": np.bool_(self.retest)}
         if q is not None:
             arrays["record"] = np.array(self.record)
-            if self.tests:
-                arrays["returns"] = np.array(self.returns, dtype=np.float64)
             arrays |= {f"gp/{k}": v for k, v in q.gp.to_arrays().items()}
             arrays |= {f"actor/{k}": v for k, v in q.actor.to_arrays().items()}
             arrays |= {"scale": np.array(q.scaling.scale, dtype=np.float64),
@@ -213,18 +171,6 @@ class KeptQ:
     def restore(self, a: dict[str, Any], agent: _Agent, source: str) -> None:
         """Inverse of :meth:`to_arrays` for ``agent`` (its config, scaling, actor's mode and
         buffer); ``ValueError`` where the arrays do not fit it."""
-        if self.tests != ("tested" in a):
-            raise ValueError("kept_q/tested must be in the file if, and only if, its config's "
-                             "keep_q is 'tested'")  # fmt: skip
-        for name in ("tested", "retest") if self.tests else ():
-            flag = np.asarray(a.pop(name))
-            if flag.shape != () or flag.dtype != np.bool_:
-                raise ValueError(f"kept_q/{name} must be one bool, got {flag!r}")
-            setattr(self, name, bool(flag))
-        returns = np.asarray(a.pop("returns", np.zeros(0)), dtype=np.float64)
-        if self.tests and a and (returns.ndim != 1 or len(returns) == 0
-                                 or not np.all(np.isfinite(returns))):  # fmt: skip
-            raise ValueError("kept_q/returns must be the kept copy's tests' finite returns")
         if not a:
             return
         if not self.on:
@@ -251,6 +197,4 @@ class KeptQ:
         actor.restore({k[6:]: v for k, v in a.items() if k.startswith("actor/")}, agent.obs_dim)
         lengthscale = float(ls[0]) if len(ls) == 1 else tuple(ls.tolist())
         self.kept = QCopy(gp, actor, scaling, lengthscale, int(stored), float(y[0]), float(y[1]))
-        self.record, self.returns = float(record), returns.tolist()
-        if self.tests and self.record != float(np.mean(self.returns)):
-            raise ValueError("kept_q/record must be the mean of kept_q/returns")
+        self.record = float(record)

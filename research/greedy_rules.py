@@ -9,7 +9,11 @@ are run with ``Q``'s greedy action sought:
 - ``near``: among the actions taken at the ``K`` stored states nearest the state
   (``K`` the candidates' count), every state input counting alike (the scaled states);
 - ``data``: ``greedy_actions="data"`` (:mod:`geoq.agents.greedy_data`): the same, near
-  in the kernel's metric (the scaled states over the state length-scales).
+  in the kernel's metric (the scaled states over the state length-scales);
+- ``nn``: the action taken at the nearest stored state (``near``'s metric), ``Q`` unasked
+  (part thirty-two: whether ``Q``'s choice among the neighbours' actions adds anything);
+- ``target``: of ``near``'s neighbours, the action of the one whose stored target (its
+  return-to-go by ``Q`` at its own state and action, not at ``obs``) is highest.
 
 No policy acts in any of these: they are ``Q``'s alone. Learning is not involved::
 
@@ -42,6 +46,7 @@ class _Greedy:
         stored = agent.buffer.transitions(last=agent.config.window)
         self.scale = np.asarray(agent.scaling.scale[: agent.obs_dim])
         self.states, self.actions = stored.states / self.scale, stored.actions
+        self.targets = agent.buffer.targets(last=len(stored))
 
     def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
         a, n = self.agent, obs.shape[0]
@@ -50,10 +55,14 @@ class _Greedy:
             return a.candidates[np.argmax(mean, axis=1)], None
         if self.rule == "dense":
             C = np.broadcast_to(self.dense, (n, *self.dense.shape))
-        else:  # near
+        else:  # near, nn, target
             r2 = ((obs / self.scale)[:, None, :] - self.states[None, :, :]) ** 2
             order = np.argsort(r2.sum(axis=2), axis=1, kind="stable")[:, : len(a.candidates)]
             C = self.actions[order]
+            if self.rule == "nn":
+                return C[:, 0], None
+            if self.rule == "target":
+                return C[np.arange(n), np.argmax(self.targets[order], axis=1)], None
         k = C.shape[1]
         X = a.inputs(np.repeat(obs, k, axis=0), np.ascontiguousarray(C).reshape(n * k, -1))
         return C[np.arange(n), np.argmax(a.gp.predict(X).reshape(n, k), axis=1)], None

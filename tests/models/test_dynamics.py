@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from geoq._io import ArchiveError
-from geoq.gp import ExactGP
+from geoq.gp import ExactGP, SparseOnlineGP
 from geoq.kernels.stationary import SquaredExponential
 from geoq.models import GPDynamicsModel, ModelSettings
 
@@ -207,6 +207,7 @@ def test_the_same_seed_gives_the_same_model() -> None:
         ModelSettings(max_bv=50, linear_mean=True),
         ModelSettings(max_bv=50, outlier_mads=3.0),
         ModelSettings(max_bv=50, standardised_support=True),
+        ModelSettings(max_bv=50, residual_noise=False),
     ],
 )
 def test_arrays_round_trip_and_the_model_continues_identically(settings: ModelSettings) -> None:
@@ -235,6 +236,72 @@ def test_a_model_saved_before_linear_means_loads_with_the_datas_mean() -> None:
     assert copy.settings.linear_mean is False and not copy.linear.any()
     q = _transitions(5, rng)[:2]
     assert np.array_equal(copy.predict_mean(*q), model.predict_mean(*q))
+
+
+def test_a_model_saved_before_the_residual_noise_loads_without_it() -> None:
+    """Archives of 8 settings were fitted with the evidence's noise however the budget fit."""
+    rng = np.random.default_rng(8)
+    settings = ModelSettings(residual_noise=False)
+    model = GPDynamicsModel(2, 1, settings).fit(*_transitions(60, rng), rng)
+    arrays = model.to_arrays()
+    assert arrays["settings"].shape == (9,)
+    copy = GPDynamicsModel.from_arrays({**arrays, "settings": arrays["settings"][:8]})
+    assert copy.settings == model.settings
+
+
+def _budget_bound(seed: int, residual_noise: bool) -> GPDynamicsModel:
+    """A model of 15 basis vectors per output on 400 transitions of a sharp simulator."""
+    rng = np.random.default_rng(seed)
+    data = _transitions(400, rng, d_s=3, d_a=2)
+    settings = ModelSettings(max_bv=15, fit_points=60, residual_noise=residual_noise)
+    return GPDynamicsModel(3, 2, settings).fit(*data, np.random.default_rng(seed + 1)), data
+
+
+def test_a_budget_that_misses_its_transitions_takes_the_residual_as_noise() -> None:
+    """Oracle: the evidence's GP streamed by hand, its mean squared residual at the
+    transitions, and a GP streamed again with that residual as its noise variance."""
+    evidence, data = _budget_bound(3, residual_noise=False)
+    model, _ = _budget_bound(3, residual_noise=True)
+    X = (np.hstack(data[:2]) - model.x_mean) / model.x_scale
+    Y = _outputs(*data)
+    raised = 0
+    for j, (first, gp) in enumerate(zip(evidence.gps, model.gps, strict=True)):
+        assert first is not None and gp is not None
+        z = (Y[:, j] - model.y_mean[j]) / model.y_scale[j]
+        residual = float(np.mean((first.predict(X) - z) ** 2))
+        assert np.array_equal(gp.kernel.lengthscale, first.kernel.lengthscale)
+        if residual <= first.noise:
+            assert gp.noise == first.noise
+            assert np.array_equal(gp.predict(X), first.predict(X))
+            continue
+        raised += 1
+        assert gp.noise == residual
+        again = SparseOnlineGP(first.kernel, noise=residual, max_bv=15, tol=first.tol).fit(X, z)
+        assert np.array_equal(gp.predict(X), again.predict(X))
+    assert raised >= 1  # the data are made so that some output's budget misses them
+
+
+def test_on_fresh_transitions_the_residual_noise_predicts_better() -> None:
+    """The pathology the setting is for: with the evidence's noise the termination's
+    15 basis vectors predict fresh transitions worse than their mean does (a mean squared
+    error 23 times their variance); with the residual as noise, within a third of it."""
+    evidence, _ = _budget_bound(5, residual_noise=False)
+    model, _ = _budget_bound(5, residual_noise=True)
+    q = _transitions(500, np.random.default_rng(105), d_s=3, d_a=2)
+    Y = _outputs(*q)
+    before, after = (np.mean((m.predict_mean(*q[:2]) - Y) ** 2, axis=0) / Y.var(axis=0)
+                     for m in (evidence, model))  # fmt: skip
+    assert before[-1] > 10.0 and after[-1] < 0.35
+    assert np.all(after <= before + 0.01)
+
+
+def test_the_residual_noise_is_refused_unless_it_is_0_or_1() -> None:
+    rng = np.random.default_rng(7)
+    arrays = GPDynamicsModel(2, 1).fit(*_transitions(50, rng), rng).to_arrays()
+    bad = arrays["settings"].copy()
+    bad[8] = 0.5
+    with pytest.raises(ArchiveError, match="residual_noise"):
+        GPDynamicsModel.from_arrays({**arrays, "settings": bad})
 
 
 def test_the_standardised_support_counts_an_input_no_output_depends_on() -> None:

@@ -38,6 +38,11 @@ class ModelSettings:
     fit (a settled policy's new states lie on its old path); 0: of the seen states' own
     nearest-neighbour distances, which along trajectories measure a step, not the data's
     reach."""
+    residual_noise: bool = True
+    """Where a streamed posterior's mean misses its own transitions by more than the
+    evidence's noise (a mean squared residual above the noise variance), stream them again
+    with that residual as the noise; False: the evidence's noise however the budget fits
+    (as archives before the setting were fitted)."""
 
     def __post_init__(self) -> None:
         check_int(self.max_bv, "max_bv", minimum=1, maximum=5000)
@@ -50,13 +55,16 @@ class ModelSettings:
 
 def settings_from(stored: list[float]) -> ModelSettings:
     """:class:`ModelSettings` from an archive's numbers (4 before linear means, 5 before the
-    outlier test, 6 before the standardised support, 7 before the support's holdout)."""
-    if len(stored) not in (4, 5, 6, 7, 8):
-        raise ValueError(f"settings must hold 4 to 8 numbers, got {len(stored)}")
-    padded = (*stored, 0.0, 0.0, 0.0, 0.0)[:8]  # the settings an older archive did not have: off
-    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised, holdout = padded
-    for name, flag in (("linear_mean", linear_mean), ("standardised_support", standardised)):
+    outlier test, 6 before the standardised support, 7 before the support's holdout, 8
+    before the residual noise)."""
+    if len(stored) not in (4, 5, 6, 7, 8, 9):
+        raise ValueError(f"settings must hold 4 to 9 numbers, got {len(stored)}")
+    padded = (*stored, 0.0, 0.0, 0.0, 0.0, 0.0)[:9]  # what an older archive did not have: off
+    max_bv, fit_points, restarts, tol, linear_mean, mads, standardised, holdout, residual = padded
+    flags = (("linear_mean", linear_mean), ("standardised_support", standardised),
+             ("residual_noise", residual))  # fmt: skip
+    for name, flag in flags:
         if flag not in (0.0, 1.0):
             raise ValueError(f"settings' {name} must be 0 or 1, got {flag}")
     return ModelSettings(int(max_bv), int(fit_points), int(restarts), tol, linear_mean == 1.0,
-                         mads, standardised == 1.0, holdout)  # fmt: skip
+                         mads, standardised == 1.0, holdout, residual == 1.0)  # fmt: skip

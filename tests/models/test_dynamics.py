@@ -281,6 +281,16 @@ def test_a_budget_that_misses_its_transitions_takes_the_residual_as_noise() -> N
     assert raised >= 1  # the data are made so that some output's budget misses them
 
 
+def test_a_budget_that_holds_every_transition_keeps_the_evidences_noise() -> None:
+    """The exact GP's residuals at its data are below its noise (their expectation is
+    ``sigma^2 tr(sigma^2 (K + sigma^2 I)^-1) / N``): the same model either way."""
+    data = _transitions(25, np.random.default_rng(0))
+    a, b = (GPDynamicsModel(2, 1, ModelSettings(max_bv=100, tol=0.0, residual_noise=flag))
+            .fit(*data, np.random.default_rng(1)) for flag in (True, False))  # fmt: skip
+    q = _transitions(9, np.random.default_rng(2))[:2]
+    assert all(np.array_equal(x, y) for x, y in zip(a.predict(*q), b.predict(*q), strict=True))
+
+
 def test_on_fresh_transitions_the_residual_noise_predicts_better() -> None:
     """The pathology the setting is for: with the evidence's noise the termination's
     15 basis vectors predict fresh transitions worse than their mean does (a mean squared

@@ -249,8 +249,9 @@ def test_a_model_saved_before_the_residual_noise_loads_without_it() -> None:
     assert copy.settings == model.settings
 
 
-def _budget_bound(seed: int, residual_noise: bool) -> GPDynamicsModel:
-    """A model of 15 basis vectors per output on 400 transitions of a sharp simulator."""
+def _budget_bound(seed: int, residual_noise: bool) -> tuple[GPDynamicsModel, tuple]:
+    """A model of 15 basis vectors per output on 400 transitions of a sharp simulator, and
+    the transitions."""
     rng = np.random.default_rng(seed)
     data = _transitions(400, rng, d_s=3, d_a=2)
     settings = ModelSettings(max_bv=15, fit_points=60, residual_noise=residual_noise)

@@ -343,13 +343,14 @@ def test_q_on_trial_is_judged_on_the_means(fresh: list, q_wins: bool) -> None:
 
 def test_greedy_actions_follow_q_on_trial_as_the_evidence_stands() -> None:
     """Oracle by hand (the policy's mean: -0.5): while ``Q`` is on trial, greedy actions
-    are ``Q``'s until the mean of its fresh returns so far is below the policy's, then
-    those of the policy's weights ``Q`` replaced (not the weights the search found),
-    while ``Q`` still acts."""
+    are ``Q``'s unless the mean of its returns is below the policy's, then those of the
+    policy's weights ``Q`` replaced (not the weights the search found), while ``Q``
+    still acts: its fresh returns so far, and before the first, its record from before
+    the trial (here 0 and -0.1, above the policy's)."""
     planning, _, rng, before = _q_on_trial()
     planning.gains = before + 1.0  # the weights the search found, which the next starts from
     states = rng.uniform(-1.0, 1.0, (5, 2))
-    for fresh in ([], [-0.4], [-0.5], [-0.9, 0.0]):  # none yet, above, tied, above
+    for fresh in ([], [-0.4], [-0.5], [-0.9, 0.0]):  # none yet (the record), above, tied, above
         planning.returns = fresh
         assert planning.greedy_weights is None, fresh
     for fresh in ([-0.6], [-0.4, -0.7]):
@@ -358,6 +359,16 @@ def test_greedy_actions_follow_q_on_trial_as_the_evidence_stands() -> None:
         assert planning.policy is not None and not planning.acting
         expected = planning.policy.act(before, states[:1])
         np.testing.assert_array_equal(planning.action(states[:1], None), expected)
+    planning.q_returns = [-0.9, -0.2]  # a record below the policy's: its weights from the start
+    for fresh, policy in (([], True), ([-0.5], False), ([-0.6], True)):
+        planning.returns = fresh
+        weights = planning.greedy_weights
+        assert (weights is not None) is policy, fresh
+        if policy:
+            np.testing.assert_array_equal(weights, before)
+    planning.q_returns = []  # no record of Q's (an older archive): Q's until it has returns
+    planning.returns = []
+    assert planning.greedy_weights is None
     planning.acting, planning.kept = True, None  # a policy acting: its own weights
     np.testing.assert_array_equal(planning.greedy_weights, before + 1.0)
 

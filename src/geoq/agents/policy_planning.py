@@ -72,9 +72,13 @@ transitions have doubled (as the model's fits do): a model that expected less th
 :data:`SEARCH_EVERY` transitions.
 
 Greedy actions follow ``Q``'s trial as its evidence stands (``greedy_weights``):
-``Q``'s, unless the mean of its fresh returns so far is below the policy's, then the
-policy's. A checkpoint taken a few episodes into the trial measures the actor the
-verdict would keep on them, not whichever the model's score happened to send back.
+``Q``'s, unless the mean of its returns is below the policy's, then the policy's; its
+fresh returns so far, and before the first of them, its record from before the trial. A
+checkpoint taken a few episodes into the trial, or as it starts, measures the actor the
+task's returns so far would keep, not whichever the model's score happened to send back
+(on ``Walker2d-v5`` a policy greedy at 638.1 over seven checkpoints, whose training
+returns stood far above ``Q``'s record, gave way at the last to ``Q``'s 13.6 as its trial
+began: docs/design-notes.md, part thirty-four).
 """
 
 from __future__ import annotations
@@ -179,14 +183,16 @@ class FeedbackPlanning:
     @property
     def greedy_weights(self) -> FloatArray | None:
         """The weights greedy actions follow (None: ``Q``'s): the acting policy's, and while
-        ``Q`` is on trial, the policy's it replaced once the mean of ``Q``'s fresh returns
-        so far is below that policy's (the verdict, on the episodes run so far)."""
+        ``Q`` is on trial, the policy's it replaced where the mean of ``Q``'s returns is
+        below that policy's: its fresh returns so far (the verdict, on the episodes run so
+        far), or before its first, its record from before the trial."""
         if self.acting:
             return self.gains
-        if self.q_on_trial and self.returns:
+        if self.q_on_trial:
             assert self.kept is not None
             gains, _, returns, _ = self.kept
-            if np.mean(self.returns) < np.mean(returns):
+            q_returns = self.returns or self.q_returns
+            if returns and q_returns and np.mean(q_returns) < np.mean(returns):
                 return gains
         return None
 

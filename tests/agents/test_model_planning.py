@@ -212,6 +212,10 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
         assert np.array_equal(x, y)
     a.planning.feedback.overshoot = 0.25  # a shortfall on record, read by the next gate
     a.planning.feedback.q_lost_at = 120  # Q lost a trial there: no new one before 240
+    if planner == "policy-net":  # weights the model could not score, on trial against others
+        feedback = a.planning.feedback
+        feedback.acting, feedback.blind = True, True
+        feedback.kept = (feedback.gains + 0.5, -1.0, [-2.0, -3.0], True)
     a.save(tmp_path / "a.npz")
     loaded = GPQAgent.load(tmp_path / "a.npz", env=PointToGoal())
     ours, theirs = a.planning.feedback, loaded.planning.feedback
@@ -221,6 +225,7 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
     assert (ours.returns, ours.episode_from) == (theirs.returns, theirs.episode_from)
     assert ours.q_returns == theirs.q_returns and ours.overshoot == theirs.overshoot == 0.25
     assert ours.q_lost_at == theirs.q_lost_at == 120
+    assert ours.blind == theirs.blind == (planner == "policy-net")
     assert ours.real_test == theirs.real_test == (planner == "policy-net")
     assert (ours.kept is None) == (theirs.kept is None) and ours.acting == theirs.acting
     a.learn(120)
@@ -238,7 +243,10 @@ def test_a_policy_agent_learns_the_same_steps_and_saves_and_loads(tmp_path, plan
                ("model/policy_overshoot", np.array(-1.0), "policy_overshoot"),
                ("model/policy_acting", np.array(2.0), "policy_acting"),
                ("model/policy_q_lost_at", np.array(-1), "policy_q_lost_at"),
-               ("model/policy_q_lost_at", np.array(1.5), "policy_q_lost_at")]  # fmt: skip
+               ("model/policy_q_lost_at", np.array(1.5), "policy_q_lost_at"),
+               ("model/policy_blind", np.array(1.0), "policy_blind")]  # fmt: skip
+    if planner == "policy-net":  # blind, but on trial against Q
+        damaged.append(("model/policy_kept_acting", np.array(False), "policy_blind"))
     for key, bad, match in damaged:
         np.savez(tmp_path / "bad.npz", **(arrays | {key: bad}))
         with pytest.raises(ArchiveError, match=match):

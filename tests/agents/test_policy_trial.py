@@ -2,7 +2,9 @@
 weights a search put in place run :data:`TEST_EPISODES` episodes, and give way to the
 actor before them (weights, or the agent's ``Q``) if their returns are worse by more
 than two standard errors; a policy acts only while the model expects it to beat ``Q``,
-and where it no longer does, ``Q`` acts on trial against it, judged on the means."""
+and where it no longer does, ``Q`` acts on trial against it, judged on the means, unless
+the model cannot tell and the task puts the policy ahead: then the weights found go on
+trial unscored, judged on the means too."""
 
 from __future__ import annotations
 
@@ -277,6 +279,86 @@ def test_an_end_the_model_predicts_beyond_its_data_does_not_tell_either() -> Non
     planning.returns = list(q_returns)
     planning.search(model, 200, np.random.default_rng(1))
     assert planning.value < q_returns[0] and planning.acting and planning.kept is not None
+
+
+@pytest.mark.parametrize(("where", "ahead", "acts_on"),
+                         [(0.5, True, True), (0.5, False, False), (1.5, True, False)])  # fmt: skip
+def test_a_policy_ahead_of_q_on_the_task_acts_on_where_the_model_cannot_tell(
+    where: float, ahead: bool, acts_on: bool
+) -> None:
+    """While a policy acts, a search whose weights the model scores below ``Q``'s record
+    leaves the policy acting where the model cannot tell (``Q``'s mean between its score
+    and the score with each halt paid the most reward seen, ``where`` as in the test
+    above) and the policy's returns on the task are not below ``Q``'s record (``ahead``):
+    the weights found (the search moved them) go on trial against the acting ones.
+    Where the model can tell, or the task says ``Q`` did better, ``Q`` comes back on
+    trial, as before."""
+    planning, model, least, most = _halting()
+    planning.returns = [0.0] * TEST_EPISODES  # Q's, beyond any policy: Q acts on
+    planning.search(model, 200, np.random.default_rng(1))
+    assert planning.policy is not None and not planning.acting and planning.kept is None
+    q_mean = least + where * (most - least)
+    mine = [q_mean + (0.1 if ahead else -0.1) * (most - least)] * TEST_EPISODES
+    planning.acting, planning.q_returns, planning.returns = True, [q_mean] * 2, list(mine)
+    before = planning.gains.copy()
+    planning.search(model, 400, np.random.default_rng(2))
+    assert planning.value < q_mean and planning.overshoot == 0.0  # the model: below Q
+    moved = not np.array_equal(planning.gains, before)
+    assert planning.q_on_trial is not acts_on and planning.acting is acts_on
+    if not acts_on:  # Q's returns start afresh, set against the policy's
+        assert planning.returns == [] and planning.kept is not None
+        assert planning.kept[2] == mine and planning.kept[3] is True
+        return
+    assert moved and planning.kept is not None and planning.blind  # on trial, unscored
+    assert planning.returns == [] and planning.q_returns == [q_mean] * 2
+    np.testing.assert_array_equal(planning.kept[0], before)
+    assert planning.kept[2] == mine and planning.kept[3] is True
+
+
+@pytest.mark.parametrize(
+    ("fresh", "kept"),
+    [([-0.6, -0.45], False), ([-0.5, -0.5], True), ([-1.5, 0.6], True), ([-0.55, -0.52], False)],
+)
+def test_weights_the_model_could_not_score_are_judged_on_the_means(fresh: list, kept: bool) -> None:
+    """Oracle by hand (the acting weights' mean: -0.5): weights on trial that the model
+    could not score (``blind``) keep acting only where their mean is not below the
+    weights' they replaced, whatever the spread (``[-0.6, -0.45]`` is within two standard
+    errors, and gives way); weights the model expected to do better are given the two
+    standard errors (the same returns keep them)."""
+    for blind in (True, False):
+        planning, model, rng = _planning()
+        before = planning.gains.copy()
+        planning.kept, planning.blind = (before, -3.0, [-0.5, -0.6, -0.4], True), blind
+        tried = before + 0.1
+        planning.gains, planning.returns = tried, list(fresh)
+        planning.search(model, 200, rng)  # no Adam step: the search keeps what it starts from
+        assert planning.kept is None and not planning.blind and planning.acting
+        stays = kept or not blind
+        np.testing.assert_array_equal(planning.gains, tried if stays else before)
+        assert planning.returns == (fresh if stays else [-0.5, -0.6, -0.4])
+
+
+def test_greedy_actions_follow_the_weights_before_until_unscored_ones_reach_their_mean() -> None:
+    """Oracle by hand (the acting weights' mean: -0.5): while weights the model could
+    not score are on trial, greedy actions follow the weights they replaced until the
+    mean of their returns reaches those weights' (none yet: the weights before); weights
+    the model scored follow their own from the start."""
+    planning, _, rng = _planning()
+    before = planning.gains.copy()
+    planning.kept, planning.blind = (before, -3.0, [-0.5, -0.6, -0.4], True), True
+    planning.gains = before + 0.1
+    for fresh in ([], [-0.6], [-0.4, -0.7]):
+        planning.returns = fresh
+        np.testing.assert_array_equal(planning.greedy_weights, before)
+    states = rng.uniform(-1.0, 1.0, (1, 2))
+    assert planning.policy is not None
+    expected = planning.policy.act(before, states)
+    np.testing.assert_array_equal(planning.action(states, None), expected)
+    for fresh in ([-0.5], [-0.9, 0.0]):
+        planning.returns = fresh
+        np.testing.assert_array_equal(planning.greedy_weights, before + 0.1)
+    planning.blind, planning.returns = False, []
+    np.testing.assert_array_equal(planning.greedy_weights, before + 0.1)
 
 
 def _q_on_trial(on_trial: bool = False) -> tuple[FeedbackPlanning, GPDynamicsModel,

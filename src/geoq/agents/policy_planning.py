@@ -52,8 +52,9 @@ where the model cannot tell: where the same roll-outs (its means, from the newes
 instead, would be above ``Q``'s mean (:meth:`FeedbackPlanning._undecided`); an end the
 model predicts beyond its data is paid there as a halt, as far as the state is unknown
 (a model that has seen a walker only fall predicts a fall wherever it has no data). The
-task is asked instead of the model, once a run: after that trial, won or lost, the trials'
-records and the overshoot speak for the model, as they do after any policy has acted.
+task is asked instead of the model, once a run, while ``Q`` acts: after that trial, won or
+lost, ``Q``'s record and the overshoot speak for the model wherever ``Q`` acts (while a
+policy acts, the same bound keeps it acting where the task says it is ahead: below).
 (Asked at every search where the model could not tell, on ``HalfCheetah-v5``, whose
 episodes run 1,000 steps, a trial of two episodes cost 2,000 of a run's 5,000 steps,
 and its checkpoints measured a policy the task was about to reject.)
@@ -71,14 +72,27 @@ transitions have doubled (as the model's fits do): a model that expected less th
 ``Q`` from its best weights is asked again once it has that much more data, not every
 :data:`SEARCH_EVERY` transitions.
 
-Greedy actions follow ``Q``'s trial as its evidence stands (``greedy_weights``):
-``Q``'s, unless the mean of its returns is below the policy's, then the policy's; its
-fresh returns so far, and before the first of them, its record from before the trial. A
-checkpoint taken a few episodes into the trial, or as it starts, measures the actor the
-task's returns so far would keep, not whichever the model's score happened to send back
-(on ``Walker2d-v5`` a policy greedy at 638.1 over seven checkpoints, whose training
-returns stood far above ``Q``'s record, gave way at the last to ``Q``'s 13.6 as its trial
-began: docs/design-notes.md, part thirty-four).
+``Q`` is not sent back where the model cannot tell (the bound above, less the
+overshoot) and the task has told: the mean of the acting policy's returns is not below
+``Q``'s record. A walker's score is the data's reach there, not the policy's (on
+``Walker2d-v5`` it went from 710.0 to -2,381.9 over one refit, 893.6 of its 1,000 steps
+halts, while the task gave the same weights 435.4; docs/design-notes.md, part
+thirty-four). The policy acts on, and the weights found, if the search moved them, go on
+trial against it ``blind``: the model has not scored them, so they are judged as ``Q``
+on trial is, on the means. They keep acting only if the mean of their returns is not
+below the acting weights'; given the two standard errors, a policy walking at 939.0 and
+132.7 gave way to weights that walked at 288.1 (docs/design-notes.md, part thirty-five).
+
+Greedy actions follow a trial as its evidence stands (``greedy_weights``). While ``Q``
+is on trial: ``Q``'s, unless the mean of its returns is below the policy's, then the
+policy's; its fresh returns so far, and before the first of them, its record from
+before the trial. While ``blind`` weights are on trial: the weights they replaced until
+the mean of their returns reaches those weights'. A checkpoint taken a few episodes into
+a trial, or as it starts, measures the actor the task's returns so far would keep, not
+whichever the model's score happened to send back (on ``Walker2d-v5`` a policy greedy
+at 638.1 over seven checkpoints, whose training returns stood far above ``Q``'s record,
+gave way at the last to ``Q``'s 13.6 as its trial began: docs/design-notes.md, part
+thirty-four).
 """
 
 from __future__ import annotations
@@ -145,8 +159,10 @@ class FeedbackPlanning:
     replaced, their score and returns and whether they acted ``kept`` (None: none on
     trial), whether the policy acts (``acting``; else ``Q`` does), ``Q``'s returns when
     a policy last replaced it ``q_returns``, the model's last shortfall ``overshoot``,
-    the transitions stored when ``Q`` last lost a trial ``q_lost_at`` (0: never), and the
-    first transition of the running episode ``episode_from`` (-1: none recorded)."""
+    the transitions stored when ``Q`` last lost a trial ``q_lost_at`` (0: never), whether
+    the weights on trial are there unscored by the model (``blind``, module docstring),
+    and the first transition of the running episode ``episode_from`` (-1: none
+    recorded)."""
 
     def __init__(self, obs_dim: int, low: FloatArray, high: FloatArray, horizon: int,
                  net: bool = False, real_test: bool = False):  # fmt: skip
@@ -155,7 +171,7 @@ class FeedbackPlanning:
         self.q_returns: list[float] = []
         self.kept: tuple[FloatArray, float, list[float], bool] | None = None
         self.episode_from, self.acting, self.overshoot = -1, False, 0.0
-        self.q_lost_at = 0
+        self.q_lost_at, self.blind = 0, False
         self.settings = PolicySearchSettings(horizon=horizon)
         steps, branch = min(BRANCH.steps, horizon), min(BRANCH.branch_horizon, horizon)
         self.gradient_settings = replace(BRANCH, horizon=horizon, steps=steps,
@@ -185,7 +201,14 @@ class FeedbackPlanning:
         """The weights greedy actions follow (None: ``Q``'s): the acting policy's, and while
         ``Q`` is on trial, the policy's it replaced where the mean of ``Q``'s returns is
         below that policy's: its fresh returns so far (the verdict, on the episodes run so
-        far), or before its first, its record from before the trial."""
+        far), or before its first, its record from before the trial. While ``blind``
+        weights are on trial, the weights they replaced until the mean of their returns
+        (none: not yet) reaches those weights'."""
+        if self.acting and self.blind:  # weights on trial the model could not score
+            assert self.kept is not None
+            gains, _, returns, _ = self.kept
+            if not self.returns or np.mean(self.returns) < np.mean(returns):
+                return gains
         if self.acting:
             return self.gains
         if self.q_on_trial:
@@ -234,13 +257,14 @@ class FeedbackPlanning:
         whether ``Q``, on trial, lost to the policy it replaced."""
         if self.kept is None:
             return False
-        q_trial = self.q_on_trial  # Q sent back by the model's level: the task's means
+        # Q sent back by the model's level, or weights the model could not score: the means
+        q_trial, blind = self.q_on_trial, self.blind
         gains, value, returns, acting = self.kept
-        self.kept = None
+        self.kept, self.blind = None, False
         new, old = np.array(self.returns), np.array(returns)
         if len(new) >= 2 and len(old) >= 2:
             se = np.sqrt(new.var(ddof=1) / len(new) + old.var(ddof=1) / len(old))
-            se = 0.0 if q_trial else se
+            se = 0.0 if q_trial or blind else se
             if new.mean() < old.mean() - HOLDOUT_SE * se:
                 if q_trial:  # Q's returns, fresh, are what the policy is set against
                     self.q_returns = list(self.returns)
@@ -250,11 +274,10 @@ class FeedbackPlanning:
 
     def _undecided(self, model: GPDynamicsModel, q_mean: float) -> bool:
         """Whether the model's return for the weights found would be above ``q_mean`` were
-        each halt paid the most reward seen rather than the least: its means rolled out
-        from the newest :data:`BLIND_STARTS` episodes' first states, an end predicted
-        beyond the data no more believed than the state there (paid as a halt as far as
-        the state is unknown). (Asked only before any policy has acted, so there is no
-        overshoot to take off.)"""
+        each halt paid the most reward seen rather than the least, less the overshoot: its
+        means rolled out from the newest :data:`BLIND_STARTS` episodes' first states, an
+        end predicted beyond the data no more believed than the state there (paid as a
+        halt as far as the state is unknown)."""
         assert self.policy is not None
         policy, gains = self.policy, self.gains
         returns, halted = rollout_outcomes(model, self.starts[-BLIND_STARTS:],
@@ -262,7 +285,7 @@ class FeedbackPlanning:
                                            self.horizon, gamma=1.0, noise=None,
                                            trust_ends=False)  # fmt: skip
         spread = float(model.reward_range[1] - model.reward_range[0])
-        return float(np.mean(returns + halted * spread)) > q_mean
+        return float(np.mean(returns + halted * spread)) - self.overshoot > q_mean
 
     def _make(self, center: FloatArray, scale: FloatArray) -> LinearFeedback | MLPFeedback:
         kind = MLPFeedback if self.net else LinearFeedback
@@ -292,11 +315,15 @@ class FeedbackPlanning:
                                                   rng, self.settings)  # fmt: skip
         self.searched_at = n
         q_returns = self.q_returns if before[3] else before[2]
-        expected = not q_returns or self.value - self.overshoot > np.mean(q_returns)
+        q_mean = float(np.mean(q_returns)) if q_returns else float("nan")
+        expected = not q_returns or self.value - self.overshoot > q_mean
         moved = not np.array_equal(self.gains, before[0])
         untried = self.real_test and not before[3] and not self.q_returns
-        if not expected and moved and untried and self._undecided(model, float(np.mean(q_returns))):
-            expected = True  # the model cannot tell: the task is asked, once
+        mine = before[2] if before[3] else []  # the acting policy's returns
+        ahead = self.real_test and bool(mine) and bool(np.mean(mine) >= q_mean)
+        blind = False
+        if not expected and ((moved and untried) or ahead) and self._undecided(model, q_mean):
+            expected, blind = True, ahead  # the model cannot tell: the task is asked (Q's: once)
         if not self.real_test:
             self.acting = True
         elif not expected and before[3] and n < 2 * self.q_lost_at:
@@ -306,7 +333,7 @@ class FeedbackPlanning:
         elif expected and moved:
             if not before[3]:
                 self.q_returns = list(before[2])
-            self.kept, self.returns, self.acting = before, [], True
+            self.kept, self.returns, self.acting, self.blind = before, [], True, blind
 
     def action(self, s: FloatArray, rng: np.random.Generator | None) -> FloatArray:
         """The policy's action ``[1, d_a]`` at ``s`` [1, d_s]: with ``rng`` the acting
@@ -333,6 +360,7 @@ class FeedbackPlanning:
             "policy_episode_from": np.array(self.episode_from),
             "policy_overshoot": np.array(self.overshoot),
             "policy_q_lost_at": np.array(self.q_lost_at),
+            "policy_blind": np.array(self.blind),
         }
         if self.policy is not None:
             arrays |= {
@@ -367,6 +395,7 @@ class FeedbackPlanning:
         if q_lost_at.shape != () or q_lost_at.dtype.kind not in "iu" or q_lost_at < 0:
             raise ValueError(f"policy_q_lost_at must be one integer >= 0, got {q_lost_at!r}")
         self.q_lost_at = int(q_lost_at)
+        self.blind = _flag(a.get("policy_blind", False), "policy_blind")
         if "policy_gains" not in a:
             return
         policy = self._make(a["policy_center"], a["policy_scale"])
@@ -379,6 +408,11 @@ class FeedbackPlanning:
             returns = _finite(a["policy_kept_returns"], "policy_kept_returns", None)
             acting = _flag(a.get("policy_kept_acting", True), "policy_kept_acting")
             self.kept = (kept, float(a["policy_kept_value"]), list(returns), acting)
+        if self.blind and (self.kept is None or not self.acting or not self.kept[3]):
+            raise ValueError(
+                "policy_blind must be False unless a policy's weights act on trial "
+                "against another policy's"
+            )
 
 
 def _finite(value: Any, name: str, shape: tuple[int, ...] | None) -> FloatArray:
